@@ -1,0 +1,460 @@
+//! Dynamic friction elements and the common interface the simulators drive.
+//!
+//! Every element is advanced over one interval during which the contact moves by `dx` at the
+//! constant velocity `v = dx / dt`. Under that (zero-order-hold) assumption every update below is
+//! *exact*: sticking blocks move linearly, slipping blocks relax exponentially, and the instant a
+//! block reaches its break force inside the interval is found analytically. That is why the stiff
+//! GMS blocks (k ~ 1e6..1e7 N/m, a few nm of pre-sliding) are stable and accurate at any step.
+
+use crate::error::{check, CoreError, Result};
+use crate::stribeck::{check_fractions, StaticFriction, Stribeck};
+
+/// How a plant step responds to a constant friction force `F` held over the step:
+/// displacement `dx = free_dx - dx_per_newton * F`, end velocity `v = free_v - v_per_newton * F`.
+#[derive(Debug, Clone, Copy)]
+pub struct Coupling {
+    pub free_dx: f64,
+    pub dx_per_newton: f64,
+    pub free_v: f64,
+    pub v_per_newton: f64,
+}
+
+/// The interface shared by all friction models.
+pub trait FrictionElement {
+    /// Force (N) in the current state.
+    fn force(&self) -> f64;
+
+    /// Advance over an interval `dt` during which the contact moves by `dx`; returns the force at
+    /// the end of the interval.
+    fn advance(&mut self, dx: f64, dt: f64) -> f64;
+
+    /// `dF/d(dx)` of [`advance`](Self::advance) about the current state for motion in
+    /// `direction` (+1 / -1), used by the linearly implicit closed-loop coupling.
+    fn tangent_stiffness(&self, direction: f64, dt: f64) -> f64;
+
+    /// Return to the virgin (unloaded, sticking) state.
+    fn reset(&mut self);
+
+    /// Force reported at the first sample of a trajectory that starts at velocity `v0`: the
+    /// virgin state for models with memory, the map value for memoryless ones.
+    fn initial_force(&self, _v0: f64) -> f64 {
+        self.force()
+    }
+
+    /// One step coupled to a plant: find the displacement consistent with the friction it
+    /// produces, advance, and return the force to hold over the step.
+    ///
+    /// The default is linearly implicit: `F(dx) ~ F + K dx` with the tangent stiffness `K`, which
+    /// keeps stiff pre-sliding springs stable at the plant's step; the exact update then applies
+    /// the slip limits.
+    fn advance_coupled(&mut self, c: &Coupling, dt: f64) -> f64 {
+        let f0 = self.force();
+        let trial = c.free_dx - c.dx_per_newton * f0;
+        let direction = if trial >= 0.0 { 1.0 } else { -1.0 };
+        let k = self.tangent_stiffness(direction, dt);
+        let dx = trial / (1.0 + c.dx_per_newton * k);
+        self.advance(dx, dt)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Static map
+// ---------------------------------------------------------------------------------------------
+
+/// The static map as a friction element: memoryless, except for the last force (for `force()`).
+#[derive(Debug, Clone)]
+pub struct StaticElement {
+    pub map: StaticFriction,
+    last: f64,
+}
+
+impl StaticElement {
+    pub fn new(map: StaticFriction) -> Self {
+        Self { map, last: map.offset }
+    }
+}
+
+impl FrictionElement for StaticElement {
+    #[inline]
+    fn force(&self) -> f64 {
+        self.last
+    }
+    #[inline]
+    fn advance(&mut self, dx: f64, dt: f64) -> f64 {
+        self.last = self.map.force(dx / dt);
+        self.last
+    }
+    fn tangent_stiffness(&self, _direction: f64, dt: f64) -> f64 {
+        self.map.sigma / dt
+    }
+    fn reset(&mut self) {
+        self.last = self.map.offset;
+    }
+    fn initial_force(&self, v0: f64) -> f64 {
+        self.map.force(v0)
+    }
+
+    /// Set-valued stiction (an implicit Karnopp scheme): if the force needed to bring the mass to
+    /// rest by the end of the step is within the break-away level, the contact sticks and supplies
+    /// exactly that force; otherwise it slides with `sign(v) s(v) + sigma v`, solved implicitly in
+    /// the end velocity. No chattering around zero velocity, whatever the step.
+    fn advance_coupled(&mut self, c: &Coupling, _dt: f64) -> f64 {
+        let m = &self.map;
+        let free_v = c.free_v - c.v_per_newton * m.offset;
+        let hold = free_v / c.v_per_newton;
+        if hold.abs() <= m.stribeck.max_level() {
+            self.last = hold + m.offset;
+            return self.last;
+        }
+        let dir = free_v.signum();
+        // v (1 + c_v sigma) = free_v - c_v dir s(v); s is evaluated at the current estimate of v.
+        let mut v = free_v;
+        for _ in 0..3 {
+            v = (free_v - c.v_per_newton * dir * m.stribeck.eval(v)) / (1.0 + c.v_per_newton * m.sigma);
+            if v * dir < 0.0 {
+                v = 0.0;
+            }
+        }
+        self.last = dir * m.stribeck.eval(v) + m.sigma * v + m.offset;
+        self.last
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Generalized Maxwell-slip
+// ---------------------------------------------------------------------------------------------
+
+/// How a slipping GMS block relaxes towards `sign(v) alpha_i s(v)`.
+///
+/// The paper's eq. 4 is garbled; both readings of the standard form are offered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SlipLaw {
+    /// Al-Bender, Lampaert & Swevers (2005): `dF_i/dt = c (sign(v) alpha_i - F_i / s(v))`,
+    /// i.e. relaxation at the rate `c / s(v)` (1/s); `c` in N/s.
+    Time,
+    /// Relaxation per unit sliding distance: `dF_i/dx = c (sign(v) alpha_i s(v) - F_i)`, rate
+    /// `c |v|` (1/s); `c` in 1/m. Rate-independent in slip, like a Dahl curve.
+    Displacement,
+}
+
+/// GMS block mode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Mode {
+    Stick,
+    /// Slipping in the given direction (+1 / -1).
+    Slip(f64),
+}
+
+/// Generalized Maxwell-slip model with N parallel elasto-slip blocks.
+#[derive(Debug, Clone)]
+pub struct Gms {
+    pub stribeck: Stribeck,
+    /// Block stiffnesses `k_i` (N/m).
+    pub k: Vec<f64>,
+    /// Block fractions `alpha_i` (sum to 1): block `i` breaks at `alpha_i s(v)`.
+    pub alpha: Vec<f64>,
+    /// Slip attraction parameter (units per [`SlipLaw`]).
+    pub c: f64,
+    /// Viscous coefficient (N s/m).
+    pub sigma: f64,
+    pub slip_law: SlipLaw,
+    forces: Vec<f64>,
+    modes: Vec<Mode>,
+    total_k: f64,
+}
+
+impl Gms {
+    pub fn new(stribeck: Stribeck, k: Vec<f64>, alpha: Vec<f64>, c: f64, sigma: f64, slip_law: SlipLaw) -> Result<Self> {
+        check::finite_array("k", &k, 1)?;
+        if let Some(&bad) = k.iter().find(|&&x| x <= 0.0) {
+            return Err(CoreError::NotPositive { name: "k", value: bad });
+        }
+        check::same_len("alpha", &alpha, "k", k.len())?;
+        check_fractions("alpha", &alpha)?;
+        check::positive("c", c)?;
+        check::non_negative("sigma", sigma)?;
+        let n = k.len();
+        let total_k = k.iter().sum();
+        Ok(Self { stribeck, k, alpha, c, sigma, slip_law, forces: vec![0.0; n], modes: vec![Mode::Stick; n], total_k })
+    }
+
+    /// Number of blocks.
+    pub fn n_blocks(&self) -> usize {
+        self.k.len()
+    }
+
+    /// Current block forces (N).
+    pub fn block_forces(&self) -> &[f64] {
+        &self.forces
+    }
+
+    /// Whether block `i` is slipping.
+    pub fn is_slipping(&self, i: usize) -> bool {
+        matches!(self.modes[i], Mode::Slip(_))
+    }
+}
+
+impl FrictionElement for Gms {
+    #[inline]
+    fn force(&self) -> f64 {
+        // The viscous part depends on the last velocity only and is included by `advance`.
+        self.forces.iter().sum()
+    }
+
+    fn advance(&mut self, dx: f64, dt: f64) -> f64 {
+        let v = dx / dt;
+        if dx == 0.0 {
+            // At rest every block sticks and holds its force.
+            for m in self.modes.iter_mut() {
+                *m = Mode::Stick;
+            }
+            return self.forces.iter().sum();
+        }
+        let dir = dx.signum();
+        // One Stribeck evaluation and one exponential per step, shared by all blocks.
+        let s = self.stribeck.eval(v);
+        let rate = match self.slip_law {
+            SlipLaw::Time => self.c / s.max(f64::MIN_POSITIVE),
+            SlipLaw::Displacement => self.c * v.abs(),
+        };
+        let decay = (-rate * dt).exp();
+        let mut total = 0.0;
+        for i in 0..self.k.len() {
+            let target = dir * self.alpha[i] * s;
+            let f = self.forces[i];
+            let slipping_along = matches!(self.modes[i], Mode::Slip(d) if d == dir);
+            let new_f = if slipping_along {
+                target + (f - target) * decay
+            } else {
+                // Sticking (or reversing out of slip): elastic update, capped at the break force.
+                let stuck = f + self.k[i] * dx;
+                if stuck * dir >= target * dir {
+                    self.modes[i] = Mode::Slip(dir);
+                    if f * dir >= target * dir {
+                        // Already beyond the (lower) break force: relax from f over the whole step.
+                        target + (f - target) * decay
+                    } else {
+                        // Reaches the break force inside the step, where it equals the target.
+                        target
+                    }
+                } else {
+                    self.modes[i] = Mode::Stick;
+                    stuck
+                }
+            };
+            self.forces[i] = new_f;
+            total += new_f;
+        }
+        total + self.sigma * v
+    }
+
+    fn tangent_stiffness(&self, direction: f64, dt: f64) -> f64 {
+        let mut k = 0.0;
+        for i in 0..self.k.len() {
+            match self.modes[i] {
+                Mode::Slip(d) if d == direction => {}
+                _ => k += self.k[i],
+            }
+        }
+        k + self.sigma / dt
+    }
+
+    fn reset(&mut self) {
+        self.forces.iter_mut().for_each(|f| *f = 0.0);
+        self.modes.iter_mut().for_each(|m| *m = Mode::Stick);
+    }
+}
+
+impl Gms {
+    /// Sum of block stiffnesses (the initial pre-sliding stiffness, N/m).
+    pub fn total_stiffness(&self) -> f64 {
+        self.total_k
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Maxwell-slip (elasto-plastic blocks with constant break forces)
+// ---------------------------------------------------------------------------------------------
+
+/// Plain Maxwell-slip: N blocks with stiffness `k_i` that slip instantly at a constant `w_i` (N).
+#[derive(Debug, Clone)]
+pub struct MaxwellSlip {
+    pub k: Vec<f64>,
+    pub w: Vec<f64>,
+    pub sigma: f64,
+    forces: Vec<f64>,
+}
+
+impl MaxwellSlip {
+    pub fn new(k: Vec<f64>, w: Vec<f64>, sigma: f64) -> Result<Self> {
+        check::finite_array("k", &k, 1)?;
+        if let Some(&bad) = k.iter().find(|&&x| x <= 0.0) {
+            return Err(CoreError::NotPositive { name: "k", value: bad });
+        }
+        check::same_len("w", &w, "k", k.len())?;
+        check::finite_array("w", &w, 1)?;
+        if let Some(&bad) = w.iter().find(|&&x| x < 0.0) {
+            return Err(CoreError::Negative { name: "w", value: bad });
+        }
+        check::non_negative("sigma", sigma)?;
+        let n = k.len();
+        Ok(Self { k, w, sigma, forces: vec![0.0; n] })
+    }
+}
+
+impl FrictionElement for MaxwellSlip {
+    fn force(&self) -> f64 {
+        self.forces.iter().sum()
+    }
+    #[inline]
+    fn advance(&mut self, dx: f64, dt: f64) -> f64 {
+        let mut total = 0.0;
+        for i in 0..self.k.len() {
+            let f = (self.forces[i] + self.k[i] * dx).clamp(-self.w[i], self.w[i]);
+            self.forces[i] = f;
+            total += f;
+        }
+        total + self.sigma * dx / dt
+    }
+    fn tangent_stiffness(&self, direction: f64, dt: f64) -> f64 {
+        let mut k = 0.0;
+        for i in 0..self.k.len() {
+            if self.forces[i] * direction < self.w[i] {
+                k += self.k[i];
+            }
+        }
+        k + self.sigma / dt
+    }
+    fn reset(&mut self) {
+        self.forces.iter_mut().for_each(|f| *f = 0.0);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// LuGre
+// ---------------------------------------------------------------------------------------------
+
+/// LuGre model: `dz/dt = v - sigma0 |v| z / s(v)`, `F = sigma0 z + sigma1 dz/dt + sigma2 v`.
+#[derive(Debug, Clone)]
+pub struct LuGre {
+    pub stribeck: Stribeck,
+    /// Bristle stiffness (N/m).
+    pub sigma0: f64,
+    /// Bristle damping (N s/m).
+    pub sigma1: f64,
+    /// Viscous coefficient (N s/m).
+    pub sigma2: f64,
+    z: f64,
+    last_force: f64,
+}
+
+impl LuGre {
+    pub fn new(stribeck: Stribeck, sigma0: f64, sigma1: f64, sigma2: f64) -> Result<Self> {
+        check::positive("sigma0", sigma0)?;
+        check::non_negative("sigma1", sigma1)?;
+        check::non_negative("sigma2", sigma2)?;
+        if stribeck.fc <= 0.0 && stribeck.fs <= 0.0 {
+            return Err(CoreError::InvalidParameter { name: "stribeck", reason: "LuGre needs a positive friction level (fc or fs > 0)".into() });
+        }
+        Ok(Self { stribeck, sigma0, sigma1, sigma2, z: 0.0, last_force: 0.0 })
+    }
+
+    /// Bristle deflection (m).
+    pub fn deflection(&self) -> f64 {
+        self.z
+    }
+}
+
+impl FrictionElement for LuGre {
+    fn force(&self) -> f64 {
+        self.last_force
+    }
+    fn advance(&mut self, dx: f64, dt: f64) -> f64 {
+        let v = dx / dt;
+        let z0 = self.z;
+        if v != 0.0 {
+            // Linear in z at constant v: exact exponential approach to the steady deflection.
+            let g = self.stribeck.eval(v).max(f64::MIN_POSITIVE);
+            let z_ss = v.signum() * g / self.sigma0;
+            let rate = self.sigma0 * v.abs() / g;
+            self.z = z_ss + (z0 - z_ss) * (-rate * dt).exp();
+        }
+        let zdot_mean = (self.z - z0) / dt;
+        self.last_force = self.sigma0 * self.z + self.sigma1 * zdot_mean + self.sigma2 * v;
+        self.last_force
+    }
+    fn tangent_stiffness(&self, direction: f64, dt: f64) -> f64 {
+        let g = self.stribeck.max_level().max(f64::MIN_POSITIVE);
+        let dz_dx = (1.0 - direction * self.sigma0 * self.z / g).clamp(0.0, 1.0);
+        (self.sigma0 + self.sigma1 / dt) * dz_dx + self.sigma2 / dt
+    }
+    fn reset(&mut self) {
+        self.z = 0.0;
+        self.last_force = 0.0;
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Model enum: dispatch once, outside the inner loops
+// ---------------------------------------------------------------------------------------------
+
+/// Any friction model of the core. Simulators `match` on this once and run a loop monomorphised
+/// for the concrete type, so there is no dynamic dispatch per step.
+#[derive(Debug, Clone)]
+pub enum FrictionModel {
+    Static(StaticElement),
+    Gms(Gms),
+    MaxwellSlip(MaxwellSlip),
+    LuGre(LuGre),
+}
+
+/// Run `$body` with `$f` bound to the concrete element inside a [`FrictionModel`].
+#[macro_export]
+macro_rules! with_friction {
+    ($model:expr, $f:ident => $body:expr) => {
+        match $model {
+            $crate::friction::FrictionModel::Static($f) => $body,
+            $crate::friction::FrictionModel::Gms($f) => $body,
+            $crate::friction::FrictionModel::MaxwellSlip($f) => $body,
+            $crate::friction::FrictionModel::LuGre($f) => $body,
+        }
+    };
+}
+
+impl FrictionModel {
+    pub fn reset(&mut self) {
+        with_friction!(self, f => f.reset())
+    }
+}
+
+/// Friction force along a measured position trajectory `x(t)`.
+///
+/// `t` must increase strictly; `out[0]` is the force of the virgin state (the static map uses the
+/// first interval's velocity), `out[k]` the force at `t[k]` after moving from `x[k-1]` to `x[k]`.
+pub fn simulate_position<F: FrictionElement>(f: &mut F, t: &[f64], x: &[f64]) -> Result<Vec<f64>> {
+    check::increasing("t", t, 2)?;
+    check::same_len("position", x, "t", t.len())?;
+    check::finite_array("position", x, 2)?;
+    let mut out = Vec::with_capacity(t.len());
+    out.push(first_force(f, t[1] - t[0], x[1] - x[0]));
+    for k in 1..t.len() {
+        out.push(f.advance(x[k] - x[k - 1], t[k] - t[k - 1]));
+    }
+    Ok(out)
+}
+
+/// Friction force along a velocity trajectory sampled at a constant step `dt` (velocity held
+/// constant over each step, zero-order hold).
+pub fn simulate_velocity<F: FrictionElement>(f: &mut F, dt: f64, v: &[f64]) -> Result<Vec<f64>> {
+    check::positive("dt", dt)?;
+    check::finite_array("velocity", v, 1)?;
+    let mut out = Vec::with_capacity(v.len());
+    for &vk in v {
+        out.push(f.advance(vk * dt, dt));
+    }
+    Ok(out)
+}
+
+fn first_force<F: FrictionElement>(f: &mut F, dt: f64, dx: f64) -> f64 {
+    f.initial_force(dx / dt)
+}

@@ -1,0 +1,151 @@
+//! Second-order plant `Y/U = a / (s^2 + b s + c)` with an input delay (paper eq. 1), discretised
+//! exactly under a zero-order hold, including delays that are not a whole number of steps.
+
+use crate::error::{check, Result};
+use nalgebra::{Matrix2, Matrix3, Vector2};
+
+/// Continuous-time plant. State: position `y` and velocity `dy/dt`.
+///
+/// The drive input `u` (V, A, N ... whatever the user's input unit is) acts through the delay;
+/// a force `F` acting on the mechanics (friction, disturbance) enters undelayed as the equivalent
+/// input `F / force_gain`, where `force_gain` is the drive's force per unit input (N per unit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plant {
+    pub a: f64,
+    pub b: f64,
+    pub c: f64,
+    /// Input delay (s).
+    pub delay: f64,
+    /// Force per unit input (N/unit): converts forces into input units.
+    pub force_gain: f64,
+}
+
+impl Plant {
+    pub fn new(a: f64, b: f64, c: f64, delay: f64, force_gain: f64) -> Result<Self> {
+        check::positive("a", a)?;
+        check::non_negative("b", b)?;
+        check::non_negative("c", c)?;
+        check::non_negative("delay", delay)?;
+        check::positive("force_gain", force_gain)?;
+        Ok(Self { a, b, c, delay, force_gain })
+    }
+
+    /// Rigid body `m y'' + d y' + k y = force_gain * u(t - delay)`.
+    pub fn from_mass(mass: f64, damping: f64, stiffness: f64, delay: f64, force_gain: f64) -> Result<Self> {
+        check::positive("mass", mass)?;
+        check::non_negative("damping", damping)?;
+        check::non_negative("stiffness", stiffness)?;
+        check::positive("force_gain", force_gain)?;
+        Self::new(force_gain / mass, damping / mass, stiffness / mass, delay, force_gain)
+    }
+
+    /// Equivalent moving mass `force_gain / a` (kg when forces are in N and positions in m).
+    pub fn mass(&self) -> f64 {
+        self.force_gain / self.a
+    }
+
+    fn a_matrix(&self) -> Matrix2<f64> {
+        Matrix2::new(0.0, 1.0, -self.c, -self.b)
+    }
+
+    /// `(Phi(h), Gamma(h))`: `exp(A h)` and `int_0^h exp(A s) ds B` via one 3x3 matrix exponential.
+    pub fn zoh(&self, h: f64) -> (Matrix2<f64>, Vector2<f64>) {
+        if h == 0.0 {
+            return (Matrix2::identity(), Vector2::zeros());
+        }
+        let a = self.a_matrix();
+        let mut m = Matrix3::zeros();
+        m.fixed_view_mut::<2, 2>(0, 0).copy_from(&(a * h));
+        m[(1, 2)] = self.a * h;
+        let e = m.exp();
+        (e.fixed_view::<2, 2>(0, 0).into_owned(), Vector2::new(e[(0, 2)], e[(1, 2)]))
+    }
+
+    /// Exact discretisation at step `dt`.
+    pub fn discretize(&self, dt: f64) -> Result<DiscretePlant> {
+        check::positive("dt", dt)?;
+        let steps = self.delay / dt;
+        // Whole steps of delay and the fractional remainder (guarded against round-off so that a
+        // delay of exactly m steps gives frac = 0).
+        let mut whole = steps.floor();
+        let mut frac = (self.delay - whole * dt).max(0.0);
+        if frac > dt * (1.0 - 1e-9) {
+            whole += 1.0;
+            frac = 0.0;
+        }
+        if frac < dt * 1e-9 {
+            frac = 0.0;
+        }
+        let (phi, gamma) = self.zoh(dt);
+        let (phi_rest, _) = self.zoh(dt - frac);
+        let (_, gamma_frac) = self.zoh(frac);
+        let (_, gamma_rest) = self.zoh(dt - frac);
+        Ok(DiscretePlant {
+            phi,
+            gamma_old: phi_rest * gamma_frac,
+            gamma_new: gamma_rest,
+            gamma_force: gamma / self.force_gain,
+            delay_steps: whole as usize,
+            dt,
+        })
+    }
+}
+
+/// The plant discretised at `dt`: `x+ = Phi x + g_old u[k-m-1] + g_new u[k-m] - g_force F`.
+#[derive(Debug, Clone, Copy)]
+pub struct DiscretePlant {
+    pub phi: Matrix2<f64>,
+    /// Response to the input sample that is still acting during the first `frac` of the step.
+    pub gamma_old: Vector2<f64>,
+    /// Response to the input sample that acts during the rest of the step.
+    pub gamma_new: Vector2<f64>,
+    /// Response to a force (N) held over the whole step, already divided by `force_gain`.
+    pub gamma_force: Vector2<f64>,
+    /// Whole steps of delay `m`.
+    pub delay_steps: usize,
+    pub dt: f64,
+}
+
+/// Ring buffer of past drive inputs realising the (fractional) delay.
+#[derive(Debug, Clone)]
+pub struct DelayLine {
+    buf: Vec<f64>,
+    head: usize,
+}
+
+impl DelayLine {
+    /// Holds the current input and the `delay_steps + 1` before it.
+    pub fn new(delay_steps: usize, initial: f64) -> Self {
+        Self { buf: vec![initial; delay_steps + 2], head: 0 }
+    }
+
+    /// Push `u[k]`, return `(u[k-m-1], u[k-m])`.
+    #[inline(always)]
+    pub fn push(&mut self, u: f64) -> (f64, f64) {
+        let n = self.buf.len();
+        self.head = if self.head + 1 == n { 0 } else { self.head + 1 };
+        self.buf[self.head] = u;
+        // Oldest slot is the one after head; the next-oldest the one after that.
+        let oldest = if self.head + 1 == n { 0 } else { self.head + 1 };
+        let next = if oldest + 1 == n { 0 } else { oldest + 1 };
+        (self.buf[oldest], self.buf[next])
+    }
+}
+
+/// Open-loop response of the plant to an input sequence `u[k]` held over `[k dt, (k+1) dt)`
+/// (no friction), starting at rest. Returns `(position, velocity)` at `t[k] = k dt`.
+pub fn simulate_open_loop(plant: &Plant, dt: f64, u: &[f64]) -> Result<(Vec<f64>, Vec<f64>)> {
+    check::finite_array("u", u, 1)?;
+    let d = plant.discretize(dt)?;
+    let mut line = DelayLine::new(d.delay_steps, 0.0);
+    let mut x = Vector2::zeros();
+    let mut y = Vec::with_capacity(u.len());
+    let mut v = Vec::with_capacity(u.len());
+    for &uk in u {
+        y.push(x[0]);
+        v.push(x[1]);
+        let (old, new) = line.push(uk);
+        x = d.phi * x + d.gamma_old * old + d.gamma_new * new;
+    }
+    Ok((y, v))
+}

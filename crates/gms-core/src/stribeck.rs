@@ -1,0 +1,114 @@
+//! Stribeck curve and the static friction map (paper eq. 2).
+
+use crate::error::{check, CoreError, Result};
+
+/// Stribeck curve `s(v) = fc + (fs - fc) * exp(-|v / vs|^delta)` (N).
+///
+/// `s(0) = fs` is the break-away (static) level, `s(inf) = fc` the Coulomb level.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stribeck {
+    /// Coulomb level (N).
+    pub fc: f64,
+    /// Static (break-away) level (N).
+    pub fs: f64,
+    /// Stribeck velocity (m/s).
+    pub vs: f64,
+    /// Shape exponent (1 = exponential, 2 = Gaussian).
+    pub delta: f64,
+    inv_vs: f64,
+}
+
+impl Stribeck {
+    /// Validated constructor.
+    pub fn new(fc: f64, fs: f64, vs: f64, delta: f64) -> Result<Self> {
+        check::non_negative("fc", fc)?;
+        check::non_negative("fs", fs)?;
+        check::positive("vs", vs)?;
+        check::positive("delta", delta)?;
+        Ok(Self { fc, fs, vs, delta, inv_vs: 1.0 / vs })
+    }
+
+    /// A curve with no Stribeck dip: `s(v) = level` for every v.
+    pub fn constant(level: f64) -> Result<Self> {
+        Self::new(level, level, 1.0, 1.0)
+    }
+
+    /// `s(v)`. The common shapes delta = 1 and 2 avoid `powf`.
+    #[inline(always)]
+    pub fn eval(&self, v: f64) -> f64 {
+        let r = (v * self.inv_vs).abs();
+        let p = if self.delta == 1.0 {
+            r
+        } else if self.delta == 2.0 {
+            r * r
+        } else {
+            r.powf(self.delta)
+        };
+        self.fc + (self.fs - self.fc) * (-p).exp()
+    }
+
+    /// The largest value of `s` (the level a sticking contact can hold).
+    pub fn max_level(&self) -> f64 {
+        self.fs.max(self.fc)
+    }
+}
+
+/// Static friction map `F(v) = sign(v) s(v) + sigma v` (paper eq. 2), plus a constant `offset`
+/// force that does not depend on motion (an unbalanced load, a drive offset).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticFriction {
+    pub stribeck: Stribeck,
+    /// Viscous coefficient (N s/m).
+    pub sigma: f64,
+    /// Motion-independent force (N) added to the map.
+    pub offset: f64,
+}
+
+impl StaticFriction {
+    pub fn new(stribeck: Stribeck, sigma: f64) -> Result<Self> {
+        check::non_negative("sigma", sigma)?;
+        Ok(Self { stribeck, sigma, offset: 0.0 })
+    }
+
+    /// Same map with a constant force `offset` (N) added.
+    pub fn with_offset(mut self, offset: f64) -> Result<Self> {
+        self.offset = check::finite("offset", offset)?;
+        Ok(self)
+    }
+
+    /// `F(v)`; zero velocity gives the offset only (the set-valued stiction is resolved by the
+    /// closed-loop coupling, see [`crate::friction::FrictionElement::advance_coupled`]).
+    #[inline(always)]
+    pub fn force(&self, v: f64) -> f64 {
+        let sliding = if v > 0.0 {
+            self.stribeck.eval(v)
+        } else if v < 0.0 {
+            -self.stribeck.eval(v)
+        } else {
+            0.0
+        };
+        sliding + self.sigma * v + self.offset
+    }
+
+    /// Evaluate the map on many velocities.
+    pub fn force_many(&self, v: &[f64]) -> Result<Vec<f64>> {
+        check::finite_array("v", v, 1)?;
+        Ok(v.iter().map(|&x| self.force(x)).collect())
+    }
+}
+
+/// Validate that fractions are non-negative and sum to one (GMS `alpha`).
+pub(crate) fn check_fractions(name: &'static str, alpha: &[f64]) -> Result<()> {
+    check::finite_array(name, alpha, 1)?;
+    if let Some(&a) = alpha.iter().find(|&&a| a < 0.0) {
+        return Err(CoreError::Negative { name, value: a });
+    }
+    let sum: f64 = alpha.iter().sum();
+    if (sum - 1.0).abs() > 1e-6 {
+        return Err(CoreError::InvalidParameter {
+            name,
+            reason: format!("fractions must sum to 1, got {sum:.6} (scale break forces w_i by their sum to get fractions)"),
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,142 @@
+"""Parameter sets from the paper and from the EMPS benchmark, converted to SI.
+
+The paper ("Identification of Friction Models for Precise Positioning System in Machine Tools")
+prints several quantities in units that cannot all be right.  Every reading below is an explicit
+argument of :class:`PaperReading`, so a user who reads the paper differently changes one field
+instead of a hidden constant.
+
+Readings (default ``PaperReading()``):
+
+* Table 1, static map.  Printed: Fc = 0.1826 N, Fs = 210 N, Vs = 450 mm/s, sigma = 6.9846 Ns/mm.
+  Taken literally Fs is 1000x Fc, the Stribeck dip would lie far above the tested velocities
+  (0.01..30 mm/s) and the viscous term would reach 210 N at 30 mm/s, against GMS break forces
+  summing to 0.1058 N (Table 2).  The consistent reading, used by default, scales the three
+  suspicious entries by 1e-3: ``fs_scale=1e-3`` (Fs = 0.210 N), ``vs_scale=1e-3``
+  (Vs = 0.45 mm/s) and sigma in N s/m (``sigma_unit=1.0``: 6.9846 N s/m).  ``PaperReading.literal()``
+  keeps the printed values.
+* Table 2, GMS blocks.  alpha printed in N: ``w = (0.0330, 0.0570, 0.0132, 0.0026)`` N are taken as
+  block break forces, ``alpha_i = w_i / sum(w)``.  ``gms_level="stribeck"`` (default) lets the
+  blocks break at ``alpha_i s(v)`` with Table 1's Stribeck curve; ``"sum"`` rescales the curve to
+  ``s(0) = sum(w) = 0.1058 N`` (eq. 6 calls ``sum W_i`` the break-away force).  k in N/mm -> N/m.
+* Eq. 4 / the attraction parameter: the text says ``C = 1/Vs``; we use ``c = 1/Vs`` numerically
+  with the Al-Bender time law (``slip_law="time"``, c in N/s), overridable with ``gms_c``.
+* Eq. 1, plant: A = 19.85 mm/(V s^2) = 0.01985 m/(V s^2), B = 168.4 1/s, C = 176.8 1/s^2
+  (the printed "V/s" units of B and C are read as 1/s and 1/s^2), delay 1.29 ms.
+* Friction enters the plant input through the motor constant, which the paper does not give:
+  ``force_per_volt`` (N/V), default 1.0.
+* The DSP output (+-10 V) "is amplified by a factor of 10": the drive input of eq. 1 is limited to
+  ``drive_limit = 100`` V.
+* No controller is given: :func:`paper_pid` is ours (documented there).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .models import GMS, StaticFriction, Stribeck
+from .system import PID, Cascade, Plant
+
+PAPER_TABLE1 = {"fc": 0.1826, "fs": 210.0, "vs_mm_s": 450.0, "sigma_N_s_per_mm": 6.9846, "delta": 1.0}
+PAPER_TABLE2_W_N = (0.0330, 0.0570, 0.0132, 0.0026)
+PAPER_TABLE2_K_N_PER_MM = (3264.7059, 8.8941, 23.7869, 2.6131)
+PAPER_EQ1 = {"a_mm": 19.85, "b": 168.4, "c": 176.8, "delay": 1.29e-3}
+
+
+@dataclass(frozen=True)
+class PaperReading:
+    """How the paper's printed numbers are turned into SI parameters (see the module doc)."""
+
+    fs_scale: float = 1e-3
+    vs_scale: float = 1e-3
+    sigma_unit: float = 1.0
+    gms_level: str = "stribeck"
+    gms_c: float | None = None
+    slip_law: str = "time"
+    force_per_volt: float = 1.0
+    drive_limit: float = 100.0
+
+    @classmethod
+    def literal(cls) -> "PaperReading":
+        """The numbers exactly as printed (Fs = 210 N, Vs = 0.45 m/s, sigma = 6984.6 N s/m)."""
+        return cls(fs_scale=1.0, vs_scale=1.0, sigma_unit=1e3)
+
+
+def paper_stribeck(reading: PaperReading = PaperReading()) -> Stribeck:
+    """Table 1's Stribeck curve under ``reading``."""
+    t = PAPER_TABLE1
+    return Stribeck(fc=t["fc"], fs=t["fs"] * reading.fs_scale, vs=t["vs_mm_s"] * 1e-3 * reading.vs_scale, delta=t["delta"])
+
+
+def paper_static_friction(reading: PaperReading = PaperReading()) -> StaticFriction:
+    """Table 1's static map ``F(v)`` under ``reading``."""
+    return StaticFriction(paper_stribeck(reading), sigma=PAPER_TABLE1["sigma_N_s_per_mm"] * reading.sigma_unit)
+
+
+def paper_gms(reading: PaperReading = PaperReading()) -> GMS:
+    """Table 2's four-block GMS under ``reading``."""
+    st = paper_stribeck(reading)
+    c = reading.gms_c if reading.gms_c is not None else 1.0 / st.vs
+    return GMS.from_break_forces(
+        [k * 1e3 for k in PAPER_TABLE2_K_N_PER_MM],
+        PAPER_TABLE2_W_N,
+        c,
+        stribeck=st,
+        sigma=PAPER_TABLE1["sigma_N_s_per_mm"] * reading.sigma_unit,
+        slip_law=reading.slip_law,  # type: ignore[arg-type]
+        scale=reading.gms_level,  # type: ignore[arg-type]
+    )
+
+
+def paper_plant(reading: PaperReading = PaperReading()) -> Plant:
+    """Eq. 1 in SI with the 1.29 ms delay."""
+    e = PAPER_EQ1
+    return Plant(a=e["a_mm"] * 1e-3, b=e["b"], c=e["c"], delay=e["delay"], force_gain=reading.force_per_volt)
+
+
+def paper_pid(reading: PaperReading = PaperReading()) -> PID:
+    """A PID for the paper's axis (the paper gives none): ~10 Hz bandwidth, ~65 deg phase margin,
+    integral zero at 5 rad/s, derivative filtered at 0.5 ms.
+
+    The output is limited to ``reading.drive_limit`` volts: the DSP's +-10 V times the x10
+    amplifier the paper mentions.  (Eq. 1 has a DC gain a/c = 0.11 mm/V, so holding the 10 mm
+    reference of Section 4.2 takes about 89 V: the limit must be the amplified one.)"""
+    lim = reading.drive_limit
+    return PID(kp=5.0e5, ki=2.5e6, kd=1.0e3, tf=5e-4, u_min=-lim, u_max=lim)
+
+
+# --- EMPS benchmark (Janot, Gautier, Brunot 2019) ------------------------------------------------
+
+EMPS_GTAU = 35.15
+EMPS_KP = 160.18
+EMPS_KV = 243.45
+EMPS_REFERENCE_MODEL = {"M": 95.11, "Fv": 203.5, "Fc": 20.39, "offset": -3.16}
+
+
+def emps_plant() -> Plant:
+    """EMPS rigid axis: mass 95.11 kg driven by ``gtau = 35.15 N/V``; viscous friction lives in
+    the friction model, not the plant."""
+    return Plant.from_mass(EMPS_REFERENCE_MODEL["M"], force_gain=EMPS_GTAU)
+
+
+def emps_friction() -> StaticFriction:
+    """EMPS reference friction ``Fv qd + Fc sign(qd) + offset`` (no Stribeck dip)."""
+    m = EMPS_REFERENCE_MODEL
+    return StaticFriction(Stribeck(m["Fc"], m["Fc"], 1.0), sigma=m["Fv"], offset=m["offset"])
+
+
+def emps_controller() -> Cascade:
+    """EMPS cascade controller with the 10 V drive limit."""
+    return Cascade(kp=EMPS_KP, kv=EMPS_KV, u_min=-10.0, u_max=10.0)
+
+
+__all__ = [
+    "PaperReading",
+    "paper_stribeck",
+    "paper_static_friction",
+    "paper_gms",
+    "paper_plant",
+    "paper_pid",
+    "emps_plant",
+    "emps_friction",
+    "emps_controller",
+]
