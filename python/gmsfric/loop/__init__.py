@@ -1,0 +1,1 @@
+"""Residual-driven identification loop (issue 5)."""

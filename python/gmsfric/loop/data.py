@@ -1,0 +1,185 @@
+"""Measured axis data for the identification loop: explicit column mapping, units, checks.
+
+A run is ``time``, ``position`` and the force on the axis, given either directly (``force``) or
+as a drive ``command`` times a ``gain`` (a number or the name of a scalar in the file, e.g. EMPS's
+``gtau``).  Files are read with :func:`gmsfric.io.read_table`; every problem raises
+:class:`~gmsfric.errors.DataError` naming the file, the column and the problem.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import DataError
+from ..io import Table, load_columns, read_table
+
+#: Unit factors to SI accepted at the boundary.
+POSITION_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "rad": 1.0, "deg": np.pi / 180.0}
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
+FORCE_UNITS = {"N": 1.0, "kN": 1e3, "mN": 1e-3, "Nm": 1.0}
+
+#: Fewest samples a run may have: the filter, the derivatives and the held-out split need room.
+MIN_SAMPLES = 200
+
+
+@dataclass
+class AxisData:
+    """One measured run of an axis, in SI units.
+
+    Attributes
+    ----------
+    t : ndarray
+        Time (s), strictly increasing, (nearly) uniformly sampled.
+    position : ndarray
+        Measured position (m).
+    force : ndarray
+        Force driving the axis (N): the measured force, or ``gain * command``.
+    source : str
+        Where the data came from (file name), for messages and reports.
+    command, gain : ndarray or None, float or None
+        The drive command (input units) and the drive gain (N per unit) when the force was
+        given that way; needed to simulate the run in closed loop.
+    reference, disturbance : ndarray or None
+        Optional reference position (m) and input disturbance (input units, added to the
+        controller output), for the closed-loop simulation.
+    """
+
+    t: NDArray[np.float64]
+    position: NDArray[np.float64]
+    force: NDArray[np.float64]
+    source: str = "data"
+    command: NDArray[np.float64] | None = None
+    gain: float | None = None
+    reference: NDArray[np.float64] | None = None
+    disturbance: NDArray[np.float64] | None = None
+    meta: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = self.t.size
+        for name in ("position", "force", "command", "reference", "disturbance"):
+            a = getattr(self, name)
+            if a is None:
+                continue
+            a = np.ascontiguousarray(a, dtype=float)
+            setattr(self, name, a)
+            if a.size != n:
+                raise DataError(f"{self.source}: {name} has {a.size} samples but time has {n}")
+            bad = np.flatnonzero(~np.isfinite(a))
+            if bad.size:
+                raise DataError(f"{self.source}: {name} has a non-finite value at row {bad[0]}")
+        if n < MIN_SAMPLES:
+            raise DataError(f"{self.source}: too few samples ({n}); the loop needs at least {MIN_SAMPLES}")
+        d = np.diff(self.t)
+        if np.any(d <= 0):
+            i = int(np.flatnonzero(d <= 0)[0]) + 1
+            raise DataError(f"{self.source}: time is not strictly increasing at row {i}")
+        if np.max(d) > 1.5 * np.median(d) or np.min(d) < 0.5 * np.median(d):
+            raise DataError(f"{self.source}: time is not uniformly sampled (steps from {d.min():.3g} to {d.max():.3g} s)")
+        if np.ptp(self.position) == 0:
+            raise DataError(f"{self.source}: position never changes; nothing to identify")
+        if not np.any(self.force != 0):
+            raise DataError(f"{self.source}: force is zero everywhere")
+
+    @property
+    def dt(self) -> float:
+        """Median sample step (s)."""
+        return float(np.median(np.diff(self.t)))
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+def _factor(units: dict[str, float], unit: str, role: str) -> float:
+    if unit not in units:
+        raise DataError(f"unknown {role} unit {unit!r}; use one of {', '.join(units)}")
+    return units[unit]
+
+
+def load_axis_data(
+    path: str | Path | Table,
+    *,
+    time: str,
+    position: str,
+    force: str | None = None,
+    command: str | None = None,
+    gain: str | float | None = None,
+    reference: str | None = None,
+    disturbance: str | None = None,
+    time_unit: str = "s",
+    position_unit: str = "m",
+    force_unit: str = "N",
+) -> AxisData:
+    """Read one run from a CSV (header row) or MATLAB .mat file with explicit column names.
+
+    Parameters
+    ----------
+    path : str, Path or Table
+        The file (or an already read :class:`gmsfric.io.Table`).
+    time, position : str
+        Column names of time and measured position.
+    force : str, optional
+        Column of the force on the axis.  Give either ``force`` or ``command`` and ``gain``.
+    command : str, optional
+        Column of the drive command (e.g. volts).
+    gain : str or float, optional
+        Drive gain, force per command unit (N/unit): a number or the name of a scalar in the file.
+    reference, disturbance : str, optional
+        Columns of the reference position (same unit as ``position``) and of an input
+        disturbance added to the controller output (command units), used only for the
+        closed-loop simulation.
+    time_unit, position_unit, force_unit : str
+        Units in the file (``s``/``ms``; ``m``/``mm``/``um``/``rad``; ``N``/``kN``/``mN``).
+
+    Returns
+    -------
+    AxisData
+
+    Raises
+    ------
+    DataError
+        Unknown column or scalar, mismatched lengths, non-finite values, non-monotonic or
+        non-uniform time, too few samples, or an ambiguous force specification.
+    """
+    table = path if isinstance(path, Table) else read_table(path)
+    if (force is None) == (command is None):
+        raise DataError(f"{table.source}: give either a force column or a command column with a gain (not both, not neither)")
+    if command is not None and gain is None:
+        raise DataError(f"{table.source}: a command column needs a drive gain (a number or a scalar name in the file)")
+    if force is not None and gain is not None:
+        raise DataError(f"{table.source}: a gain only makes sense with a command column")
+    kt = _factor(TIME_UNITS, time_unit, "time")
+    kq = _factor(POSITION_UNITS, position_unit, "position")
+    kf = _factor(FORCE_UNITS, force_unit, "force")
+    mapping = {"time": time, "position": position}
+    if force is not None:
+        mapping["force"] = force
+    else:
+        mapping["command"] = command  # type: ignore[assignment]
+    if reference is not None:
+        mapping["reference"] = reference
+    if disturbance is not None:
+        mapping["disturbance"] = disturbance
+    cols = load_columns(table, mapping, min_samples=MIN_SAMPLES)
+    g = None
+    if command is not None:
+        g = table.number(gain, role="gain")  # type: ignore[arg-type]
+        if g == 0:
+            raise DataError(f"{table.source}: drive gain {gain!r} is zero")
+        f = g * cols["command"]
+    else:
+        f = cols["force"] * kf
+    return AxisData(
+        t=cols["time"] * kt,
+        position=cols["position"] * kq,
+        force=f,
+        source=Path(table.source).name,
+        command=cols.get("command"),
+        gain=g,
+        reference=None if reference is None else cols["reference"] * kq,
+        disturbance=cols.get("disturbance"),
+        meta=dict(table.scalars),
+    )

@@ -1,0 +1,278 @@
+"""Inverse-model least squares (IDIM-LS): the EMPS recipe and the regression machinery.
+
+Recipe (Janot, Gautier & Brunot 2019): zero-phase Butterworth low-pass on the position (order 4,
+100 Hz at 1 kHz), central differences for velocity and acceleration, edge samples dropped, and
+every column (force included) decimated with a zero-phase anti-aliasing filter ("parallel
+decimation").  The force is then linear in the parameters::
+
+    f = M qdd + Fv qd + Fc sign(qd) + offset + sum_k theta_k phi_k(q, qd, qdd, t)
+
+Extra columns ``phi_k`` come from the effect catalogue (:mod:`gmsfric.loop.effects`); effects
+with a nonlinear parameter (a Stribeck velocity, a delay, a resonance) are fitted by a grid over
+that parameter with the linear ones solved exactly at each grid point.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+
+from ..errors import IdentificationError
+from .data import AxisData
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Preprocessing:
+    """Filtering and decimation of the EMPS recipe, scaled to the sample rate.
+
+    Parameters
+    ----------
+    cutoff_hz : float, optional
+        Butterworth cut-off (Hz); default ``min(100, fs/10)``.
+    order : int
+        Butterworth order (applied forward and backward).
+    decimation : int, optional
+        Decimation factor; default ``max(1, round(fs / 100))`` (the recipe's 100 Hz rows).
+    edge_s : float
+        Time dropped at both ends (s) before decimating (the recipe drops 49 samples at 1 kHz).
+    """
+
+    cutoff_hz: float | None = None
+    order: int = 4
+    decimation: int | None = None
+    edge_s: float = 0.049
+
+    def resolve(self, fs: float) -> tuple[float, int, int]:
+        fc = self.cutoff_hz if self.cutoff_hz is not None else min(100.0, fs / 10.0)
+        fc = min(fc, 0.45 * fs)
+        dec = self.decimation if self.decimation is not None else max(1, int(round(fs / 100.0)))
+        edge = int(round(self.edge_s * fs))
+        return float(fc), int(dec), edge
+
+
+class Signals:
+    """One run after preprocessing: full-rate filtered states and decimated regression rows.
+
+    Attributes
+    ----------
+    data : AxisData
+    q, qd, qdd : ndarray
+        Filtered position (m), velocity (m/s), acceleration (m/s^2) at the full rate.
+    y : ndarray
+        Decimated force rows (N): the regression target.
+    rows : dict[str, ndarray]
+        Decimated ``t``, ``q``, ``qd``, ``qdd`` aligned with ``y`` (for residual analysis).
+    """
+
+    def __init__(self, data: AxisData, pre: Preprocessing = Preprocessing(), *, q_range: tuple[float, float] | None = None, t0: float | None = None) -> None:
+        self.data, self.pre = data, pre
+        self.dt = data.dt
+        self.fs = 1.0 / self.dt
+        self.cutoff, self.dec, self.edge = pre.resolve(self.fs)
+        n = len(data)
+        if n - 2 * self.edge < 20 * self.dec:
+            raise IdentificationError(f"{data.source}: {n} samples leave too few rows after dropping {self.edge} edge samples and decimating by {self.dec}")
+        b, a = signal.butter(pre.order, self.cutoff / (self.fs / 2.0))
+        q = signal.filtfilt(b, a, data.position)
+        qd = np.empty_like(q)
+        qdd = np.empty_like(q)
+        qd[1:-1] = (q[2:] - q[:-2]) / (2 * self.dt)
+        qdd[1:-1] = (q[2:] - 2 * q[1:-1] + q[:-2]) / self.dt**2
+        qd[0], qd[-1], qdd[0], qdd[-1] = qd[1], qd[-2], qdd[1], qdd[-2]
+        self.q, self.qd, self.qdd = q, qd, qdd
+        self.t = data.t - data.t[0]
+        self.t0 = 0.0 if t0 is None else t0
+        #: Position range the position bases are defined on (the estimation run's, for validation).
+        self.q_range = q_range if q_range is not None else (float(q.min()), float(q.max()))
+        #: Scale of the velocity (robust max) used to place velocity grids.
+        self.v_scale = float(np.percentile(np.abs(qd), 99)) or 1.0
+        self.duration = float(self.t[-1])
+        self.y = self.decimate(data.force)
+        self.rows = {"t": self.decimate(self.t), "q": self.decimate(q), "qd": self.decimate(qd), "qdd": self.decimate(qdd)}
+        self._cache: dict[tuple, Array] = {}
+
+    def decimate(self, x: Array) -> Array:
+        """Drop the edges and decimate (zero-phase), along the first axis."""
+        x = np.asarray(x, dtype=float)
+        x = x[self.edge : x.shape[0] - self.edge] if self.edge else x
+        if self.dec == 1:
+            return np.ascontiguousarray(x)
+        return np.ascontiguousarray(signal.decimate(x, self.dec, axis=0, zero_phase=True))
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.y.size)
+
+    def cached(self, key: tuple, make: Callable[[], Array]) -> Array:
+        if key not in self._cache:
+            self._cache[key] = make()
+        return self._cache[key]
+
+
+# ------------------------------------------------------------------------------------------
+# Terms: a term turns a run into full-rate regression columns for given hyper-parameters.
+
+
+@dataclass(frozen=True)
+class Term:
+    """A group of regression columns ``phi(sig, hyper) -> (n, k)`` with parameter names."""
+
+    name: str
+    param_names: tuple[str, ...]
+    build: Callable[[Signals, tuple], Array]
+    hyper: tuple = ()
+    hyper_names: tuple[str, ...] = ()
+
+    def full(self, sig: Signals) -> Array:
+        return sig.cached(("full", self.name, self.hyper), lambda: np.atleast_2d(np.asarray(self.build(sig, self.hyper), dtype=float).T).T.reshape(sig.q.size, -1))
+
+    def with_hyper(self, hyper: tuple) -> "Term":
+        return Term(self.name, self.param_names, self.build, tuple(hyper), self.hyper_names)
+
+
+def _shift(x: Array, steps: float) -> Array:
+    """``x(t + steps*dt)`` by linear interpolation (edges held)."""
+    if steps == 0:
+        return x
+    n = x.shape[0]
+    idx = np.clip(np.arange(n) + steps, 0, n - 1)
+    i0 = np.floor(idx).astype(int)
+    i1 = np.minimum(i0 + 1, n - 1)
+    w = (idx - i0)[:, None]
+    return x[i0] * (1 - w) + x[i1] * w
+
+
+def term_rows(term: Term, sig: Signals, delay_steps: float = 0.0) -> Array:
+    """Decimated regression rows of ``term`` on ``sig``, with the force delayed ``delay_steps`` samples."""
+    key = ("rows", term.name, term.hyper, round(delay_steps, 4))
+
+    def make() -> Array:
+        return sig.decimate(_shift(term.full(sig), delay_steps))
+
+    return sig.cached(key, make)
+
+
+BASE_TERMS: dict[str, Term] = {
+    "inertia": Term("inertia", ("M",), lambda s, h: s.qdd),
+    "viscous": Term("viscous", ("Fv",), lambda s, h: s.qd),
+    "coulomb": Term("coulomb", ("Fc",), lambda s, h: np.sign(s.qd)),
+    "offset": Term("offset", ("offset",), lambda s, h: np.ones_like(s.q)),
+}
+
+#: The EMPS reference model: ``f = M qdd + Fv qd + Fc sign(qd) + offset``.
+REFERENCE_MODEL = ("inertia", "viscous", "coulomb", "offset")
+
+
+@dataclass
+class LinearModel:
+    """A force model linear in its parameters: terms, an input delay, fitted parameters.
+
+    Attributes
+    ----------
+    terms : list of Term
+    delay : float
+        Input delay (s): the force acts ``delay`` after it is commanded.
+    theta, cov : ndarray
+        Parameters and their covariance (least squares, residual variance scaled).
+    effects : list of str
+        Catalogue effects the model contains, in the order they were added.
+    """
+
+    terms: list[Term]
+    delay: float = 0.0
+    theta: Array | None = None
+    cov: Array | None = None
+    effects: list[str] = field(default_factory=list)
+    extras: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def param_names(self) -> list[str]:
+        return [p for t in self.terms for p in t.param_names]
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names) + (1 if self.delay else 0) + sum(len(t.hyper) for t in self.terms)
+
+    def X(self, sig: Signals) -> Array:
+        steps = self.delay / sig.dt
+        return np.hstack([term_rows(t, sig, steps) for t in self.terms])
+
+    def fit(self, sig: Signals, rows: NDArray[np.bool_] | slice | None = None) -> "LinearModel":
+        """Least squares on ``sig`` (optionally on a subset of rows); returns self."""
+        X, y = self.X(sig), sig.y
+        if rows is not None:
+            X, y = X[rows], y[rows]
+        theta, cov = lstsq(X, y)
+        self.theta, self.cov = theta, cov
+        return self
+
+    def predict(self, sig: Signals) -> Array:
+        if self.theta is None:
+            raise IdentificationError("model is not fitted")
+        return self.X(sig) @ self.theta
+
+    def params(self) -> dict[str, dict[str, float]]:
+        """``{name: {"value", "std"}}`` including hyper-parameters (std NaN: grid-selected)."""
+        out: dict[str, dict[str, float]] = {}
+        if self.theta is not None:
+            std = np.sqrt(np.clip(np.diag(self.cov), 0, None)) if self.cov is not None else np.full(self.theta.size, np.nan)
+            for name, v, s in zip(self.param_names, self.theta, std):
+                out[name] = {"value": float(v), "std": float(s)}
+        for t in self.terms:
+            for hn, hv in zip(t.hyper_names, t.hyper):
+                out[hn] = {"value": float(hv), "std": float("nan")}
+        if self.delay:
+            out["delay_s"] = {"value": float(self.delay), "std": float("nan")}
+        for k, v in self.extras.items():
+            out[k] = {"value": float(v), "std": float("nan")}
+        return out
+
+    def copy(self) -> "LinearModel":
+        return LinearModel(list(self.terms), self.delay, None, None, list(self.effects), dict(self.extras))
+
+    def describe(self) -> str:
+        parts = {"inertia": "M qdd", "viscous": "Fv qd", "coulomb": "Fc sign(qd)", "offset": "offset"}
+        body = " + ".join(parts.get(t.name, t.name) for t in self.terms)
+        if self.delay:
+            body += f", force delayed {self.delay * 1e3:.2f} ms"
+        return "f = " + body
+
+
+def lstsq(X: Array, y: Array) -> tuple[Array, Array]:
+    """Least squares with column scaling; returns ``theta`` and its covariance."""
+    if X.shape[0] <= X.shape[1]:
+        raise IdentificationError(f"{X.shape[0]} rows for {X.shape[1]} parameters: not enough data")
+    scale = np.sqrt((X**2).sum(axis=0))
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    theta_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+    r = y - Xs @ theta_s
+    sigma2 = float(r @ r) / (X.shape[0] - X.shape[1])
+    try:
+        cov_s = sigma2 * np.linalg.pinv(Xs.T @ Xs)
+    except np.linalg.LinAlgError:  # pragma: no cover
+        cov_s = np.full((X.shape[1], X.shape[1]), np.nan)
+    theta = theta_s / scale
+    cov = cov_s / np.outer(scale, scale)
+    return theta, cov
+
+
+def relative_error(y: Array, y_hat: Array) -> float:
+    """``100 ||y - y_hat|| / ||y||`` (percent)."""
+    return float(100.0 * np.linalg.norm(y - y_hat) / np.linalg.norm(y))
+
+
+def reference_model() -> LinearModel:
+    """The EMPS reference structure (unfitted)."""
+    return LinearModel([BASE_TERMS[n] for n in REFERENCE_MODEL])
+
+
+def fit_baseline(est: Signals, terms: Sequence[str] = REFERENCE_MODEL) -> LinearModel:
+    """IDIM-LS fit of the baseline structure on a whole run."""
+    return LinearModel([BASE_TERMS[n] for n in terms]).fit(est)
