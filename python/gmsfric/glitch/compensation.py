@@ -1,0 +1,286 @@
+"""Model-based friction feedforward (the paper's future work) and sweeps over gains.
+
+The *true* axis is the plant with GMS friction (the richer model stands in for the machine).
+The feedforward is the friction a model predicts along the reference, in drive units:
+
+* static map: ``F_static(dr/dt) / force_gain`` (reference velocity, ``numpy.gradient``);
+* GMS: ``simulate_friction(gms, t, r) / force_gain`` along the reference position;
+
+time-shifted by ``advance`` seconds (default: the plant's input delay, so the force arrives when
+the friction acts) and scaled by ``gain``.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .. import presets
+from .._validate import as_array, finite, same_length
+from ..errors import InvalidInputError
+from ..models import GMS, FrictionModel, StaticFriction, simulate_friction
+from ..system import PID, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
+from .metrics import GlitchReport, glitch_metrics
+from .scenario import DEFAULT_GAINS, scenario_controller, sinusoid_reference
+
+STRATEGIES = ("none", "static_feedforward", "gms_feedforward")
+
+
+def friction_feedforward(
+    model: FrictionModel,
+    t: ArrayLike,
+    reference: ArrayLike,
+    force_gain: float,
+    *,
+    advance: float = 0.0,
+    gain: float = 1.0,
+) -> NDArray[np.float64]:
+    """Friction feedforward (drive units) from ``model`` evaluated along the reference.
+
+    Parameters
+    ----------
+    model : StaticFriction or dynamic friction model
+        A ``StaticFriction`` is evaluated at the reference velocity; any other model is simulated
+        along the reference position with :func:`gmsfric.simulate_friction`.
+    t : array_like
+        Sample times (s), strictly increasing.
+    reference : array_like
+        Reference position (m).
+    force_gain : float
+        Plant force per drive unit (N/unit).
+    advance : float
+        Time shift (s): the feedforward at ``t`` uses the reference at ``t + advance`` (held at
+        the last sample beyond the end).  Use the input delay to pre-compensate it.
+    gain : float
+        Multiplier of the feedforward (1 = the model's force).
+
+    Returns
+    -------
+    ndarray
+        Feedforward per sample (drive units).
+    """
+    t_arr = as_array("t", t, min_len=3)
+    r = as_array("reference", reference, min_len=3)
+    same_length("reference", r, "t", t_arr.size)
+    advance = finite("advance", advance)
+    gain = finite("gain", gain)
+    fg = finite("force_gain", force_gain)
+    if fg <= 0:
+        raise InvalidInputError(f"`force_gain` must be > 0, got {fg}")
+    ts = t_arr + advance
+    rs = np.interp(ts, t_arr, r)
+    if isinstance(model, StaticFriction):
+        force = model.force(np.gradient(rs, t_arr))
+    else:
+        force = simulate_friction(model, t_arr, rs)
+    return gain * force / fg
+
+
+@dataclass(frozen=True)
+class CompensationResult:
+    """Runs of the true (GMS) axis with each compensation strategy.
+
+    Attributes
+    ----------
+    runs : dict of str -> ClosedLoopResult
+    feedforward : dict of str -> ndarray or None
+    baseline : ndarray
+        Frictionless error of the same loop.
+    metrics : dict of str -> GlitchReport
+    """
+
+    runs: Mapping[str, ClosedLoopResult]
+    feedforward: Mapping[str, NDArray[np.float64] | None]
+    baseline: NDArray[np.float64]
+    metrics: Mapping[str, GlitchReport]
+
+    def reduction(self, strategy: str) -> float:
+        """Cut of the peak glitch height by ``strategy`` relative to no compensation (%)."""
+        h0 = self.metrics["none"].height
+        return float("nan") if h0 == 0 else 100.0 * (1.0 - self.metrics[strategy].height / h0)
+
+    def summary(self) -> dict[str, dict[str, Any]]:
+        """``{strategy: {"peak_error_m", "raw_peak_error_m", ..., "reduction_percent"}}``."""
+        out: dict[str, dict[str, Any]] = {}
+        for k, m in self.metrics.items():
+            d = m.to_dict()
+            d["reduction_percent"] = 0.0 if k == "none" else self.reduction(k)
+            out[k] = d
+        return out
+
+
+def _simulate_many(jobs: Sequence[Mapping[str, Any]]) -> list[ClosedLoopResult]:
+    """The single entry point every sweep goes through: a list of closed-loop jobs (keyword
+    arguments of :func:`gmsfric.simulate_closed_loop`) -> results, in order.  Uses the batch API
+    (``gmsfric.batch``) when it is available, else runs them one after the other."""
+    try:  # pragma: no cover - depends on issue 6's batch module
+        from .. import batch  # type: ignore[attr-defined]
+
+        run = getattr(batch, "simulate_closed_loop_batch", None)
+    except ImportError:
+        run = None
+    if run is not None:  # pragma: no cover
+        try:
+            return list(run(list(jobs)))
+        except TypeError:
+            pass
+    return [simulate_closed_loop(**job) for job in jobs]
+
+
+def run_compensation(
+    plant: Plant | None = None,
+    true_friction: FrictionModel | None = None,
+    static: StaticFriction | None = None,
+    gms: GMS | None = None,
+    controller: PID | Cascade | None = None,
+    *,
+    amplitude: float = 0.01,
+    frequency: float = 0.01,
+    dt: float = 1e-4,
+    periods: float = 1.0,
+    advance: float | None = None,
+    ff_gain: float = 1.0,
+    window: tuple[float, float] | None = None,
+) -> CompensationResult:
+    """Simulate the sinusoid scenario on the true axis without compensation, with static-map and
+    with GMS feedforward.
+
+    Parameters
+    ----------
+    plant : Plant, optional
+        Default ``presets.paper_plant()``.
+    true_friction : friction model, optional
+        Friction of the simulated machine; default ``gms`` (the identified GMS).
+    static, gms : friction models, optional
+        The models the feedforwards are computed from (paper defaults).
+    controller : PID or Cascade, optional
+        Default :func:`~gmsfric.glitch.scenario.scenario_controller`.
+    amplitude, frequency, dt, periods : float
+        Sinusoid and step as in :func:`~gmsfric.glitch.scenario.run_sinusoid`.
+    advance : float, optional
+        Feedforward time advance (s); default the plant's input delay.
+    ff_gain : float
+        Feedforward gain (1 = model force).
+    window : (float, float), optional
+        Metric window.
+
+    Returns
+    -------
+    CompensationResult
+    """
+    plant = presets.paper_plant() if plant is None else plant
+    static = presets.paper_static_friction() if static is None else static
+    gms = presets.paper_gms() if gms is None else gms
+    true_friction = gms if true_friction is None else true_friction
+    controller = scenario_controller() if controller is None else controller
+    adv = plant.delay if advance is None else finite("advance", advance)
+    t, r, v0 = sinusoid_reference(amplitude, frequency, dt, periods)
+    ffs: dict[str, NDArray[np.float64] | None] = {
+        "none": None,
+        "static_feedforward": friction_feedforward(static, t, r, plant.force_gain, advance=adv, gain=ff_gain),
+        "gms_feedforward": friction_feedforward(gms, t, r, plant.force_gain, advance=adv, gain=ff_gain),
+    }
+    jobs = [dict(plant=plant, friction=None, controller=controller, reference=r, dt=dt, initial_velocity=v0)]
+    jobs += [dict(plant=plant, friction=true_friction, controller=controller, reference=r, dt=dt, initial_velocity=v0, feedforward=ffs[k]) for k in STRATEGIES]
+    results = _simulate_many(jobs)
+    base = results[0].error
+    runs = dict(zip(STRATEGIES, results[1:]))
+    metrics = {k: glitch_metrics(t, runs[k].error, r, baseline=base, window=window) for k in STRATEGIES}
+    return CompensationResult(runs, ffs, base, metrics)
+
+
+def compensation_sweep(
+    grid: Mapping[str, Iterable[float]],
+    *,
+    plant: Plant | None = None,
+    true_friction: FrictionModel | None = None,
+    static: StaticFriction | None = None,
+    gms: GMS | None = None,
+    amplitude: float = 0.01,
+    frequency: float = 0.01,
+    dt: float = 2e-4,
+    periods: float = 1.0,
+    tf: float = DEFAULT_GAINS["tf"],
+    drive_limit: float = presets.PaperReading().drive_limit,
+    window: tuple[float, float] | None = None,
+) -> list[dict[str, float | str]]:
+    """Glitch height of every strategy over a grid of controller and feedforward gains, all runs
+    submitted in one batch call.
+
+    Parameters
+    ----------
+    grid : dict
+        Values to combine (Cartesian product) for any of ``kp``, ``ki``, ``kd`` (controller),
+        ``ff_gain`` (feedforward multiplier) and ``advance`` (feedforward advance, s).  Missing
+        keys take the scenario defaults (gain 1, advance = plant delay).
+    plant, true_friction, static, gms, amplitude, frequency, dt, periods, tf, drive_limit, window
+        As in :func:`run_compensation`.
+
+    Returns
+    -------
+    list of dict
+        One row per grid point and strategy: the grid values, ``strategy``, ``peak_error_m`` (glitch
+        height against the linear error), ``raw_peak_error_m``, ``duration_s``, ``area_m_s`` and ``reduction_percent`` (against the
+        uncompensated run at the same controller gains).
+    """
+    allowed = ("kp", "ki", "kd", "ff_gain", "advance")
+    if not isinstance(grid, Mapping):
+        raise InvalidInputError(f"`grid` must be a dict of parameter -> values, got {type(grid).__name__}")
+    for k in grid:
+        if k not in allowed:
+            raise InvalidInputError(f"`grid` key {k!r} is unknown; use {allowed}")
+    plant = presets.paper_plant() if plant is None else plant
+    static = presets.paper_static_friction() if static is None else static
+    gms = presets.paper_gms() if gms is None else gms
+    true_friction = gms if true_friction is None else true_friction
+    defaults = {"kp": DEFAULT_GAINS["kp"], "ki": DEFAULT_GAINS["ki"], "kd": DEFAULT_GAINS["kd"], "ff_gain": 1.0, "advance": plant.delay}
+    axes = {k: [finite(f"grid[{k!r}]", v) for v in as_array(f"grid[{k!r}]", list(grid.get(k, [defaults[k]])))] for k in allowed}
+    t, r, v0 = sinusoid_reference(amplitude, frequency, dt, periods)
+    ff_cache: dict[tuple[str, float, float], NDArray[np.float64]] = {}
+
+    def ff(name: str, g: float, adv: float) -> NDArray[np.float64]:
+        key = (name, g, adv)
+        if key not in ff_cache:
+            ff_cache[key] = friction_feedforward(static if name == "static_feedforward" else gms, t, r, plant.force_gain, advance=adv, gain=g)
+        return ff_cache[key]
+
+    points = [dict(zip(allowed, combo)) for combo in itertools.product(*(axes[k] for k in allowed))]
+    jobs: list[dict[str, Any]] = []
+    index: list[tuple[int, str]] = []
+    linear_idx: dict[tuple[float, float, float], int] = {}
+    for i, p in enumerate(points):
+        ctrl = scenario_controller(p["kp"], p["ki"], p["kd"], tf, drive_limit)
+        gains = (p["kp"], p["ki"], p["kd"])
+        if gains not in linear_idx:
+            linear_idx[gains] = len(jobs)
+            jobs.append(dict(plant=plant, friction=None, controller=ctrl, reference=r, dt=dt, initial_velocity=v0))
+            index.append((-1, "linear"))
+        for s in STRATEGIES:
+            jobs.append(dict(plant=plant, friction=true_friction, controller=ctrl, reference=r, dt=dt, initial_velocity=v0,
+                             feedforward=None if s == "none" else ff(s, p["ff_gain"], p["advance"])))
+            index.append((i, s))
+    results = _simulate_many(jobs)
+    rows: list[dict[str, float | str]] = []
+    by_point: dict[int, dict[str, GlitchReport]] = {}
+    for (i, s), res in zip(index, results):
+        if i < 0:
+            continue
+        p = points[i]
+        base = results[linear_idx[(p["kp"], p["ki"], p["kd"])]].error
+        by_point.setdefault(i, {})[s] = glitch_metrics(t, res.error, r, baseline=base, window=window)
+    for i, p in enumerate(points):
+        h0 = by_point[i]["none"].height
+        for s in STRATEGIES:
+            m = by_point[i][s]
+            row: dict[str, float | str] = dict(p)
+            row.update(strategy=s, peak_error_m=m.height, raw_peak_error_m=m.raw_peak_error, duration_s=m.duration, area_m_s=m.area,
+                       reduction_percent=(100.0 * (1.0 - m.height / h0)) if h0 > 0 else float("nan"))
+            rows.append(row)
+    return rows
+
+
+__all__ = ["STRATEGIES", "CompensationResult", "friction_feedforward", "run_compensation", "compensation_sweep"]

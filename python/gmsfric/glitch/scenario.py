@@ -1,0 +1,203 @@
+"""The paper's Section 4.2 scenario: the axis of eq. 1 tracking a 10 mm, 0.01 Hz sinusoid without
+friction, with the static map and with GMS (Fig. 14).
+
+Choices (see ``docs/glitch.md``):
+
+* Plant: eq. 1 as identified (``presets.paper_plant``) for all three runs.  Table 3's revised
+  parameters compensate the FRF of the *combined* model in the paper's Simulink set-up; they are
+  available as :func:`table3_plant` but not the default (the revised static-map plant, B' = 2.40
+  1/s, is a lightly damped resonator that makes the comparison one of plants, not of friction).
+* Controller: the paper gives none.  :func:`scenario_controller` is ``presets.paper_pid`` with all
+  gains divided by 10 (same zeros, ~1 Hz bandwidth, kp = 5e4 V/m): slow enough that the friction
+  glitches stand out of the linear tracking error, as they do in Fig. 14.
+* The run starts at the sinusoid's zero crossing with the reference velocity, so there is no
+  start transient; one period (100 s) contains two reversals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import presets
+from .._validate import finite, positive
+from ..errors import InvalidInputError
+from ..models import GMS, FrictionModel, StaticFriction
+from ..system import PID, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
+from .metrics import GlitchReport, glitch_metrics
+
+#: Table 3 as read in docs/glitch.md: (A' mm/(V s^2), B' 1/s, C' 1/s^2) per friction model.
+PAPER_TABLE3 = {"static": (19.85, 2.40, 176.80), "gms": (180.40, 168.40, 176.80)}
+
+#: Default gains of the glitch scenario (paper_pid / 10), V/m, V/(m s), V s/m, s.
+DEFAULT_GAINS = {"kp": 5.0e4, "ki": 2.5e5, "kd": 1.0e2, "tf": 5e-4}
+
+MODELS = ("none", "static", "gms")
+
+
+def scenario_controller(
+    kp: float = DEFAULT_GAINS["kp"],
+    ki: float = DEFAULT_GAINS["ki"],
+    kd: float = DEFAULT_GAINS["kd"],
+    tf: float = DEFAULT_GAINS["tf"],
+    drive_limit: float = presets.PaperReading().drive_limit,
+) -> PID:
+    """The PID of the glitch scenario (``presets.paper_pid`` / 10 by default).
+
+    Parameters
+    ----------
+    kp, ki, kd : float
+        Gains (V/m, V/(m s), V s/m).
+    tf : float
+        Derivative filter time constant (s).
+    drive_limit : float
+        Symmetric output limit (V).
+
+    Returns
+    -------
+    PID
+    """
+    lim = positive("drive_limit", drive_limit)
+    return PID(kp=kp, ki=ki, kd=kd, tf=tf, u_min=-lim, u_max=lim)
+
+
+def table3_plant(model: str, reading: presets.PaperReading = presets.PaperReading()) -> Plant:
+    """The revised plant of Table 3 for ``model`` (``"static"`` or ``"gms"``), read as
+    ``static: A'=19.85, B'=2.40, C'=176.80``; ``gms: A'=180.40, B'=168.40, C'=176.80``."""
+    if model not in PAPER_TABLE3:
+        raise InvalidInputError(f"`model` must be 'static' or 'gms', got {model!r}")
+    a, b, c = PAPER_TABLE3[model]
+    return Plant(a=a * 1e-3, b=b, c=c, delay=presets.PAPER_EQ1["delay"], force_gain=reading.force_per_volt)
+
+
+def sinusoid_reference(amplitude: float, frequency: float, dt: float, periods: float = 1.0, phase: float = 0.0) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """``r(t) = amplitude sin(2 pi frequency t + phase)`` sampled at ``k dt`` over ``periods``.
+
+    Returns
+    -------
+    t, r : ndarray
+    v0 : float
+        Reference velocity at ``t = 0`` (m/s), the natural initial velocity.
+    """
+    amplitude = positive("amplitude", amplitude)
+    frequency = positive("frequency", frequency)
+    dt = positive("dt", dt)
+    periods = positive("periods", periods)
+    phase = finite("phase", phase)
+    n = int(round(periods / frequency / dt)) + 1
+    if n < 3:
+        raise InvalidInputError(f"`dt` = {dt} is too coarse for {periods} period(s) at {frequency} Hz")
+    t = np.arange(n) * dt
+    w = 2.0 * np.pi * frequency
+    return t, amplitude * np.sin(w * t + phase), amplitude * w * np.cos(phase)
+
+
+@dataclass(frozen=True)
+class ScenarioResult:
+    """Runs of one scenario keyed by model name, with their glitch metrics.
+
+    Attributes
+    ----------
+    runs : dict of str -> ClosedLoopResult
+    baselines : dict of str -> ndarray
+        Frictionless error of the plant each run used (the linear error).
+    metrics : dict of str -> GlitchReport
+    """
+
+    runs: Mapping[str, ClosedLoopResult]
+    baselines: Mapping[str, NDArray[np.float64]]
+    metrics: Mapping[str, GlitchReport]
+    params: Mapping[str, object] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, dict[str, object]]:
+        """``{model: {"peak_error_m" (glitch height), "raw_peak_error_m", "duration_s", "area_m_s", "reversals"}}``."""
+        return {k: r.to_dict() for k, r in self.metrics.items()}
+
+
+def run_sinusoid(
+    plant: Plant | None = None,
+    static: StaticFriction | None = None,
+    gms: GMS | None = None,
+    controller: PID | Cascade | None = None,
+    *,
+    amplitude: float = 0.01,
+    frequency: float = 0.01,
+    dt: float = 1e-4,
+    periods: float = 1.0,
+    plants: Mapping[str, Plant] | None = None,
+    window: tuple[float, float] | None = None,
+    drive_limit: float | None = None,
+) -> ScenarioResult:
+    """The paper's Fig. 14: tracking error without friction, with the static map and with GMS.
+
+    Parameters
+    ----------
+    plant : Plant, optional
+        Default ``presets.paper_plant()``.
+    static, gms : friction models, optional
+        Defaults ``presets.paper_static_friction()`` and ``presets.paper_gms()``.
+    controller : PID or Cascade, optional
+        Default :func:`scenario_controller`.
+    amplitude, frequency : float
+        Sinusoid (m, Hz); the paper: 10 mm, 0.01 Hz.
+    dt : float
+        Step (s).
+    periods : float
+        Length of the run in periods (reversals at 1/4 and 3/4 of each).
+    plants : dict, optional
+        Per-model plants overriding ``plant`` (e.g. ``{"static": table3_plant("static")}``).
+    window : (float, float), optional
+        Metric window, see :func:`~gmsfric.glitch.metrics.glitch_metrics`.
+    drive_limit : float, optional
+        Extra drive limit (V) besides the controller's.
+
+    Returns
+    -------
+    ScenarioResult
+        ``metrics[m].height`` is the glitch relative to the linear error of the same plant,
+        ``metrics[m].raw_peak_error`` the raw tracking error at the reversals.
+    """
+    plant = presets.paper_plant() if plant is None else plant
+    static = presets.paper_static_friction() if static is None else static
+    gms = presets.paper_gms() if gms is None else gms
+    controller = scenario_controller() if controller is None else controller
+    t, r, v0 = sinusoid_reference(amplitude, frequency, dt, periods)
+    frictions: dict[str, FrictionModel | None] = {"none": None, "static": static, "gms": gms}
+    plants = dict(plants or {})
+    for k in plants:
+        if k not in MODELS:
+            raise InvalidInputError(f"`plants` keys must be among {MODELS}, got {k!r}")
+    jobs = []
+    for name in MODELS:
+        p = plants.get(name, plant)
+        jobs.append((name, p, frictions[name]))
+    runs: dict[str, ClosedLoopResult] = {}
+    baselines: dict[str, NDArray[np.float64]] = {}
+    linear_cache: dict[int, NDArray[np.float64]] = {}
+    for name, p, fr in jobs:
+        res = simulate_closed_loop(p, fr, controller, r, dt, initial_velocity=v0, drive_limit=drive_limit)
+        runs[name] = res
+        if fr is None:
+            linear_cache[id(p)] = res.error
+    for name, p, fr in jobs:
+        if id(p) not in linear_cache:
+            linear_cache[id(p)] = simulate_closed_loop(p, None, controller, r, dt, initial_velocity=v0, drive_limit=drive_limit).error
+        baselines[name] = linear_cache[id(p)]
+    metrics = {name: glitch_metrics(t, runs[name].error, r, baseline=baselines[name], window=window) for name in MODELS}
+    params = {"amplitude_m": amplitude, "frequency_hz": frequency, "dt_s": dt, "periods": periods}
+    return ScenarioResult(runs, baselines, metrics, params)
+
+
+__all__ = [
+    "PAPER_TABLE3",
+    "DEFAULT_GAINS",
+    "MODELS",
+    "ScenarioResult",
+    "scenario_controller",
+    "table3_plant",
+    "sinusoid_reference",
+    "run_sinusoid",
+]
