@@ -1,0 +1,148 @@
+"""The result object shared by every identification step."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain-JSON version of ``value`` (non-finite floats become ``None``)."""
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [_jsonable(v) for v in value.tolist()]
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    return value
+
+
+@dataclass
+class IdentificationResult:
+    """Identified parameters with standard errors.
+
+    Attributes
+    ----------
+    model : str
+        ``"static_map"``, ``"presliding"`` (GMS blocks), ``"plant"`` or ``"revised_plant"``.
+    parameters : dict
+        ``{name: (value, stderr)}`` in the data's own units (see ``units``).
+    units : dict
+        ``{name: unit string}``.
+    info : dict
+        JSON-able extras (number of points, fit cost, information criteria, ...).
+    data : dict
+        Arrays kept for the figures (not exported to JSON).
+    """
+
+    model: str
+    parameters: dict[str, tuple[float, float]]
+    units: dict[str, str] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+    data: dict[str, Any] = field(default_factory=dict, repr=False)
+    plotter: Callable[["IdentificationResult"], "list[Figure]"] | None = field(default=None, repr=False)
+    model_object: Any = field(default=None, repr=False)
+
+    def value(self, name: str) -> float:
+        """The identified value of ``name``."""
+        return self.parameters[name][0]
+
+    def stderr(self, name: str) -> float:
+        """The standard error of ``name``."""
+        return self.parameters[name][1]
+
+    @property
+    def values(self) -> dict[str, float]:
+        return {k: v for k, (v, _) in self.parameters.items()}
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"model", "parameters": {name: {"value", "stderr"}}, "units", ...info}``."""
+        out: dict[str, Any] = {
+            "model": self.model,
+            "parameters": {k: {"value": _jsonable(v), "stderr": _jsonable(s)} for k, (v, s) in self.parameters.items()},
+            "units": dict(self.units),
+        }
+        for k, v in self.info.items():
+            if k not in out:
+                out[k] = _jsonable(v)
+        return out
+
+    def to_json(self, path: str | Path | None = None, *, indent: int = 2) -> str:
+        """The JSON text of :meth:`to_dict`; also written to ``path`` when given."""
+        text = json.dumps(self.to_dict(), indent=indent)
+        if path is not None:
+            Path(path).write_text(text + "\n")
+        return text
+
+    def table(self) -> str:
+        """A plain-text table ``name  value  stderr  unit``."""
+        rows = [("parameter", "value", "stderr", "rel.", "unit")]
+        for k, (v, s) in self.parameters.items():
+            rel = f"{abs(s / v):.1%}" if v != 0 and np.isfinite(s) else "-"
+            rows.append((k, f"{v:.6g}", f"{s:.3g}", rel, self.units.get(k, "")))
+        widths = [max(len(r[i]) for r in rows) for i in range(5)]
+        lines = [f"{self.model}"]
+        for j, r in enumerate(rows):
+            lines.append("  ".join(c.ljust(w) if i in (0, 4) else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))).rstrip())
+            if j == 0:
+                lines.append("  ".join("-" * w for w in widths))
+        return "\n".join(lines)
+
+    def plot(self) -> "list[Figure]":
+        """The figures of this fit (matplotlib ``Figure`` objects, no pyplot)."""
+        return [] if self.plotter is None else self.plotter(self)
+
+    def save_figures(self, directory: str | Path, prefix: str | None = None) -> list[Path]:
+        """Save :meth:`plot` as PNG files in ``directory`` (created); returns the paths."""
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        paths = []
+        for i, fig in enumerate(self.plot()):
+            name = fig.get_label() or f"{i}"
+            p = d / f"{prefix or self.model}_{name}.png"
+            fig.savefig(p, dpi=110)
+            paths.append(p)
+        return paths
+
+    def __str__(self) -> str:
+        return self.table()
+
+
+def covariance_from_jacobian(jac: NDArray[np.float64], residual: NDArray[np.float64], n_params: int | None = None) -> NDArray[np.float64]:
+    """``s^2 (J^T J)^-1`` with ``s^2 = |r|^2 / (m - p)``.
+
+    Columns are scaled to unit norm before the (pseudo-)inversion; directions the data do not
+    determine (relative singular value below 1e-10) get infinite variance.
+    """
+    m, p = jac.shape
+    p = n_params or p
+    dof = max(m - p, 1)
+    s2 = float(residual @ residual) / dof
+    norms = np.linalg.norm(jac, axis=0)
+    safe = np.where(norms > 0, norms, 1.0)
+    js = jac / safe
+    _, sv, vt = np.linalg.svd(js, full_matrices=False)
+    good = sv > (sv.max() if sv.size else 0.0) * 1e-10
+    inv = (vt[good].T / sv[good] ** 2) @ vt[good]
+    cov = inv / np.outer(safe, safe)
+    bad = np.zeros(jac.shape[1], dtype=bool)
+    if not good.all():
+        bad |= np.abs(vt[~good]).max(axis=0) > 1e-3
+    bad |= norms == 0
+    cov[bad, :] = np.inf
+    cov[:, bad] = np.inf
+    return cov * s2
