@@ -91,12 +91,15 @@ class CompensationResult:
     baseline : ndarray
         Frictionless error of the same loop.
     metrics : dict of str -> GlitchReport
+    force_gain : float
+        The plant's force per drive unit (N/V).
     """
 
     runs: Mapping[str, ClosedLoopResult]
     feedforward: Mapping[str, NDArray[np.float64] | None]
     baseline: NDArray[np.float64]
     metrics: Mapping[str, GlitchReport]
+    force_gain: float = 1.0
 
     def reduction(self, strategy: str) -> float:
         """Cut of the peak glitch height by ``strategy`` relative to no compensation (%)."""
@@ -190,7 +193,7 @@ def run_compensation(
     base = results[0].error
     runs = dict(zip(STRATEGIES, results[1:]))
     metrics = {k: glitch_metrics(t, runs[k].error, r, baseline=base, window=window) for k in STRATEGIES}
-    return CompensationResult(runs, ffs, base, metrics)
+    return CompensationResult(runs, ffs, base, metrics, plant.force_gain)
 
 
 def compensation_sweep(

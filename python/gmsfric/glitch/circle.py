@@ -1,0 +1,152 @@
+"""XY circle test (ballbar style, ISO 230-4): two decoupled axes, each its own plant, friction and
+controller, tracking ``x = R cos(theta)``, ``y = R sin(theta)``, ``theta = 2 pi f t``.
+
+X reverses at 0 and 180 deg, Y at 90 and 270 deg: the quadrant crossings where the glitches
+appear.  The run starts ``lead_in`` degrees before 0 deg (after the start transient of the
+integrators has died out) and ends ``lead_out`` degrees after 360 deg; the radial error is
+``sqrt(x^2 + y^2) - R``, the glitch at a crossing is the peak of the radial error minus the
+frictionless radial error in the window after it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import presets
+from .._validate import non_negative, positive
+from ..models import GMS, FrictionModel, StaticFriction
+from ..system import PID, Cascade, ClosedLoopResult, Plant
+from .compensation import _simulate_many
+from .scenario import MODELS, scenario_controller
+
+QUADRANTS = (0, 90, 180, 270)
+
+
+@dataclass(frozen=True)
+class CircleResult:
+    """Circle runs keyed by model (``"none"``, ``"static"``, ``"gms"``).
+
+    Attributes
+    ----------
+    t, theta : ndarray
+        Time (s) and reference angle (rad).
+    radius : float
+        Circle radius (m).
+    x, y : dict of str -> ClosedLoopResult
+        Per-axis runs.
+    radial_error : dict of str -> ndarray
+        ``sqrt(x^2 + y^2) - R`` (m).
+    quadrant_glitch : dict of str -> dict of int -> float
+        Per model, the glitch height (m) at 0, 90, 180, 270 deg against the frictionless radial
+        error (signed: negative = the path dips inside the circle).
+    """
+
+    t: NDArray[np.float64]
+    theta: NDArray[np.float64]
+    radius: float
+    x: Mapping[str, ClosedLoopResult]
+    y: Mapping[str, ClosedLoopResult]
+    radial_error: Mapping[str, NDArray[np.float64]]
+    quadrant_glitch: Mapping[str, Mapping[int, float]]
+
+    def summary(self) -> dict[str, object]:
+        """JSON-able ``{"radius_m", model: {"radial_error_min_m", "radial_error_max_m",
+        "peak_glitch_m", "quadrant_glitch_m": {"0": ..., "90": ..., ...}}}``."""
+        out: dict[str, object] = {"radius_m": self.radius}
+        sel = (self.theta >= 0) & (self.theta <= 2 * np.pi)
+        for m, er in self.radial_error.items():
+            q = self.quadrant_glitch[m]
+            out[m] = {
+                "radial_error_min_m": float(er[sel].min()),
+                "radial_error_max_m": float(er[sel].max()),
+                "peak_glitch_m": float(max(abs(v) for v in q.values())),
+                "quadrant_glitch_m": {str(k): float(v) for k, v in q.items()},
+            }
+        return out
+
+
+def run_circle(
+    plant: Plant | tuple[Plant, Plant] | None = None,
+    static: StaticFriction | tuple[StaticFriction, StaticFriction] | None = None,
+    gms: GMS | tuple[GMS, GMS] | None = None,
+    controller: PID | Cascade | tuple[PID | Cascade, PID | Cascade] | None = None,
+    *,
+    radius: float = 0.01,
+    frequency: float = 0.01,
+    dt: float = 1e-4,
+    lead_in: float = 45.0,
+    lead_out: float = 10.0,
+    window_deg: float = 30.0,
+) -> CircleResult:
+    """Circle test without friction, with the static map and with GMS on both axes.
+
+    Parameters
+    ----------
+    plant, static, gms, controller : object or (x, y) pair, optional
+        One value for both axes or an ``(x, y)`` pair; paper defaults and
+        :func:`~gmsfric.glitch.scenario.scenario_controller`.
+    radius : float
+        Circle radius (m).
+    frequency : float
+        Revolutions per second (feed = 2 pi R f).
+    dt : float
+        Step (s).
+    lead_in, lead_out : float
+        Degrees simulated before 0 deg and after 360 deg.
+    window_deg : float
+        Width (deg) after each quadrant crossing searched for the glitch.
+
+    Returns
+    -------
+    CircleResult
+    """
+
+    def pair(v: object) -> tuple[object, object]:
+        return (v[0], v[1]) if isinstance(v, tuple) else (v, v)
+
+    px, py = pair(presets.paper_plant() if plant is None else plant)
+    sx, sy = pair(presets.paper_static_friction() if static is None else static)
+    gx, gy = pair(presets.paper_gms() if gms is None else gms)
+    cx, cy = pair(scenario_controller() if controller is None else controller)
+    radius = positive("radius", radius)
+    frequency = positive("frequency", frequency)
+    dt = positive("dt", dt)
+    lead_in = non_negative("lead_in", lead_in)
+    lead_out = non_negative("lead_out", lead_out)
+    window_deg = positive("window_deg", window_deg)
+    w = 2 * np.pi * frequency
+    t0 = -np.deg2rad(lead_in) / w
+    t1 = (2 * np.pi + np.deg2rad(lead_out)) / w
+    n = int(round((t1 - t0) / dt)) + 1
+    t = t0 + np.arange(n) * dt
+    theta = w * t
+    rx, ry = radius * np.cos(theta), radius * np.sin(theta)
+    vx0, vy0 = -radius * w * np.sin(theta[0]), radius * w * np.cos(theta[0])
+    fr: dict[str, tuple[FrictionModel | None, FrictionModel | None]] = {"none": (None, None), "static": (sx, sy), "gms": (gx, gy)}  # type: ignore[dict-item]
+    jobs = []
+    for m in MODELS:
+        jobs.append(dict(plant=px, friction=fr[m][0], controller=cx, reference=rx, dt=dt, initial_velocity=vx0))
+        jobs.append(dict(plant=py, friction=fr[m][1], controller=cy, reference=ry, dt=dt, initial_velocity=vy0))
+    res = _simulate_many(jobs)
+    xs = {m: res[2 * i] for i, m in enumerate(MODELS)}
+    ys = {m: res[2 * i + 1] for i, m in enumerate(MODELS)}
+    radial = {m: np.hypot(xs[m].position, ys[m].position) - radius for m in MODELS}
+    glitch: dict[str, dict[int, float]] = {}
+    win = np.deg2rad(window_deg)
+    for m in MODELS:
+        g = radial[m] - radial["none"]
+        q: dict[int, float] = {}
+        for ang in QUADRANTS:
+            a = np.deg2rad(ang)
+            sel = (theta >= a) & (theta <= a + win)
+            i = int(np.argmax(np.abs(g[sel])))
+            q[ang] = float(g[sel][i])
+        glitch[m] = q
+    return CircleResult(t, theta, radius, xs, ys, radial, glitch)
+
+
+__all__ = ["QUADRANTS", "CircleResult", "run_circle"]

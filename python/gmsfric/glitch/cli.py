@@ -1,0 +1,187 @@
+"""``gmsfric glitch``: the paper's Section 4.2 scenario, the XY circle test and friction
+compensation, as JSON (``--json``) and figures (``--plot``)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+
+
+from .. import presets
+from ..errors import DataError
+from ..models import GMS, StaticFriction, Stribeck
+from ..system import Plant
+from .scenario import DEFAULT_GAINS, scenario_controller, table3_plant
+
+# unit strings of `gmsfric identify` files -> factor to SI
+_UNIT_FACTORS = {"mm": 1e-3, "mm/s": 1e-3, "N/mm": 1e3, "N s/mm": 1e3, "Ns/mm": 1e3, "N.s/mm": 1e3, "mm/(V s^2)": 1e-3, "mm/V/s^2": 1e-3, "ms": 1e-3}
+
+
+def _load_parameters(path: str) -> tuple[str, dict[str, float]]:
+    """``(model, {name: value in SI})`` from a ``gmsfric identify --json`` file."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise DataError(f"cannot read `{path}`: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise DataError(f"`{path}` is not JSON: {exc}") from None
+    if not isinstance(doc, Mapping) or not isinstance(doc.get("parameters"), Mapping):
+        raise DataError(f"`{path}` has no \"parameters\" object (expected the JSON of `gmsfric identify ... --json`)")
+    units = doc.get("units") or {}
+    out: dict[str, float] = {}
+    for name, entry in doc["parameters"].items():
+        value = entry.get("value") if isinstance(entry, Mapping) else entry
+        if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise DataError(f"`{path}`: parameter {name!r} has no finite value")
+        out[str(name)] = float(value) * _UNIT_FACTORS.get(str(units.get(name, "")).strip(), 1.0)
+    return str(doc.get("model", "")).lower(), out
+
+
+def _plant_from(path: str | None) -> Plant:
+    if path is None:
+        return presets.paper_plant()
+    model, p = _load_parameters(path)
+    missing = [k for k in ("a", "b", "c") if k not in p]
+    if missing:
+        raise DataError(f"`--plant` file `{path}` lacks {missing} (model {model!r})")
+    return Plant(a=p["a"], b=p["b"], c=p["c"], delay=p.get("delay", presets.PAPER_EQ1["delay"]), force_gain=p.get("force_gain", 1.0))
+
+
+def _frictions_from(paths: Sequence[str]) -> tuple[StaticFriction, GMS]:
+    static_p: dict[str, float] | None = None
+    blocks: dict[str, float] | None = None
+    for path in paths:
+        model, p = _load_parameters(path)
+        if any(n.startswith("k") and n[1:].isdigit() for n in p):
+            blocks = p
+            if {"fc", "fs", "vs"} <= set(p) and static_p is None:
+                static_p = p
+        elif {"fc", "fs", "vs"} <= set(p):
+            static_p = p
+        else:
+            raise DataError(f"`--friction` file `{path}` (model {model!r}) has neither fc/fs/vs nor k1../w1.. parameters")
+    static = presets.paper_static_friction()
+    if static_p is not None:
+        st = Stribeck(static_p["fc"], static_p["fs"], static_p["vs"], static_p.get("delta", 1.0))
+        static = StaticFriction(st, sigma=static_p.get("sigma", 0.0))
+    if blocks is None:
+        if static_p is None:
+            return static, presets.paper_gms()
+        ref = presets.paper_gms()
+        gms = GMS(static.stribeck, ref.k, ref.alpha, 1.0 / static.stribeck.vs, static.sigma, ref.slip_law)
+        return static, gms
+    n = sorted(int(k[1:]) for k in blocks if k.startswith("k") and k[1:].isdigit())
+    try:
+        k = [blocks[f"k{i}"] for i in n]
+        w = [blocks[f"w{i}"] for i in n]
+    except KeyError as exc:
+        raise DataError(f"`--friction` block parameters incomplete: missing {exc.args[0]}") from None
+    c = blocks.get("c", 1.0 / static.stribeck.vs)
+    gms = GMS.from_break_forces(k, w, c, stribeck=static.stribeck, sigma=static.sigma)
+    return static, gms
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``glitch`` command to ``subparsers``."""
+    p = subparsers.add_parser(
+        "glitch",
+        help="quadrant glitches: paper Sec. 4.2 sinusoid, XY circle test, friction feedforward",
+        description="Simulate the paper's Section 4.2 scenario (10 mm, 0.01 Hz sinusoid) without friction, with the static "
+        "map and with GMS; the XY circle (ballbar) test; and model-based friction feedforward. See docs/glitch.md.",
+    )
+    p.add_argument("--json", metavar="OUT", help="write the results as JSON to OUT ('-' = stdout)")
+    p.add_argument("--plot", metavar="DIR", help="save the figures as PNG in DIR")
+    p.add_argument("--plant", metavar="FILE", help="plant JSON from `gmsfric identify` (a b c [delay force_gain]); default eq. 1")
+    p.add_argument("--table3", action="store_true", help="use Table 3's revised plant per friction model (docs/glitch.md)")
+    p.add_argument("--friction", metavar="FILE", action="append", default=[], help="friction JSON from `gmsfric identify` (static map: fc fs vs sigma delta; GMS blocks: k1..kN w1..wN [c]); repeatable")
+    p.add_argument("--amplitude", type=float, default=0.01, help="sinusoid amplitude and circle radius (m), default 0.01")
+    p.add_argument("--frequency", type=float, default=0.01, help="sinusoid / circle frequency (Hz), default 0.01")
+    p.add_argument("--kp", type=float, default=DEFAULT_GAINS["kp"], help="PID proportional gain (V/m)")
+    p.add_argument("--ki", type=float, default=DEFAULT_GAINS["ki"], help="PID integral gain (V/(m s))")
+    p.add_argument("--kd", type=float, default=DEFAULT_GAINS["kd"], help="PID derivative gain (V s/m)")
+    p.add_argument("--tf", type=float, default=DEFAULT_GAINS["tf"], help="derivative filter time constant (s)")
+    p.add_argument("--drive-limit", type=float, default=presets.PaperReading().drive_limit, help="drive limit (V)")
+    p.add_argument("--ff-gain", type=float, default=1.0, help="feedforward gain (1 = model force)")
+    p.add_argument("--ff-advance", type=float, default=None, help="feedforward time advance (s); default the plant delay")
+    p.add_argument("--dt", type=float, default=1e-4, help="simulation step (s), default 1e-4")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the three studies and write JSON / figures; returns the exit code."""
+    from .circle import run_circle
+    from .compensation import run_compensation
+    from .scenario import run_sinusoid
+
+    plant = _plant_from(args.plant)
+    static, gms = _frictions_from(args.friction)
+    ctrl = scenario_controller(args.kp, args.ki, args.kd, args.tf, args.drive_limit)
+    plants = {"static": table3_plant("static"), "gms": table3_plant("gms")} if args.table3 else None
+    common = dict(amplitude=args.amplitude, frequency=args.frequency, dt=args.dt)
+    sin = run_sinusoid(plant, static, gms, ctrl, plants=plants, **common)  # type: ignore[arg-type]
+    circ = run_circle(plant, static, gms, ctrl, radius=args.amplitude, frequency=args.frequency, dt=args.dt)
+    comp = run_compensation(plant, None, static, gms, ctrl, advance=args.ff_advance, ff_gain=args.ff_gain, **common)  # type: ignore[arg-type]
+    out = {
+        "sinusoid": sin.summary(),
+        "circle": circ.summary(),
+        "compensation": comp.summary(),
+        "parameters": {
+            "amplitude_m": args.amplitude, "frequency_hz": args.frequency, "dt_s": args.dt,
+            "kp": args.kp, "ki": args.ki, "kd": args.kd, "tf_s": args.tf, "drive_limit_V": args.drive_limit,
+            "ff_gain": args.ff_gain, "ff_advance_s": plant.delay if args.ff_advance is None else args.ff_advance,
+            "plant": {"a": plant.a, "b": plant.b, "c": plant.c, "delay": plant.delay, "force_gain": plant.force_gain},
+            "table3": bool(args.table3),
+            "peak_error_definition": "max |e - e_lin| in the window after each reversal (e_lin: frictionless error of the same loop)",
+        },
+    }
+    text = json.dumps(out, indent=2)
+    if args.json == "-":
+        print(text)
+    elif args.json:
+        Path(args.json).write_text(text + "\n")
+    if args.plot:
+        from .plots import plot_circle_polar, plot_compensation, plot_tracking_errors
+
+        d = Path(args.plot)
+        d.mkdir(parents=True, exist_ok=True)
+        for name, fig in (("glitch_tracking_errors", plot_tracking_errors(sin)), ("glitch_circle_polar", plot_circle_polar(circ)),
+                          ("glitch_compensation", plot_compensation(comp))):
+            fig.savefig(d / f"{name}.png", dpi=110)
+    s = {k: v["peak_error_m"] for k, v in out["sinusoid"].items()}
+    c = out["compensation"]
+    print(
+        "sinusoid peak glitch [µm]: " + ", ".join(f"{k} {v * 1e6:.3f}" for k, v in s.items())
+        + f"; compensation: none {c['none']['peak_error_m'] * 1e6:.3f}, static FF {c['static_feedforward']['peak_error_m'] * 1e6:.3f}"
+        f" ({c['static_feedforward']['reduction_percent']:.1f} %), GMS FF {c['gms_feedforward']['peak_error_m'] * 1e6:.3f}"
+        f" ({c['gms_feedforward']['reduction_percent']:.1f} %)",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``gmsfric glitch`` alone (for tests and ``python -m gmsfric.glitch.cli``)."""
+    from ..errors import GmsfricError
+
+    parser = argparse.ArgumentParser(prog="gmsfric")
+    sub = parser.add_subparsers(dest="command")
+    register(sub)
+    args = parser.parse_args(["glitch", *(argv or [])])
+    try:
+        return int(args.func(args) or 0)
+    except GmsfricError as exc:
+        print(f"gmsfric glitch: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main(sys.argv[1:]))
+
+
+__all__ = ["register", "run", "main"]
+
