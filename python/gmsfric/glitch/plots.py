@@ -62,7 +62,7 @@ def plot_circle_polar(result: "CircleResult", *, scale_um: float | None = None) 
     ax.set_rmin(0.0)
     ax.set_rmax(offset + 1.2 * span)
     ax.set_yticklabels([])
-    ax.set_title(f"Circle test, radial error (ring = 0, {span / 2:.2g} µm per half-scale)")
+    ax.set_title(f"Circle test: radial error in µm (dotted ring = 0, drawn at {offset:.3g} µm)")
     ax.legend(fontsize="small", loc="lower left", bbox_to_anchor=(-0.1, -0.12))
     return fig
 
