@@ -1,0 +1,286 @@
+"""The effect catalogue: candidate extensions of the force model, each a set of regression
+columns (linear parameters) with, for some, a nonlinear parameter fitted by a grid search.
+
+=============================  ===============================================================
+``asymmetric_friction``        viscous friction (and, with an offset in the model, the Coulomb
+                               level while moving) differ between the two directions
+``stribeck``                   ``(Fs - Fc) sign(qd) exp(-|qd/vs|^delta)``: friction falls from a
+                               break-away level at low speed
+``presliding_hysteresis``      GMS / Maxwell-slip blocks: elasto-plastic elements of break
+                               displacement ``Delta_i`` and break force ``w_i`` (rate-independent
+                               hysteresis after each reversal)
+``position_dependent_friction``  ``sign(qd) g(q)``: the Coulomb level varies along the travel
+``position_dependent_force``   ``g(q)``, independent of direction: cogging, springs, cables
+``input_delay``                the force acts ``tau`` after it is commanded
+``friction_drift``             ``(Fc sign(qd) + Fv qd) h(t)``: friction changes over the run
+``compliance``                 a load ``m2`` on a spring-damper (``fn``, ``zeta``) behind the
+                               measured motor: ``m2 (H(s) - 1) qdd``
+``offset``                     a constant force (when the model has none)
+=============================  ===============================================================
+
+``g(q)`` is either a Legendre polynomial over the estimation run's travel (smooth: springs,
+gravity compensation, wear) or a Fourier series at periods picked from the residual's
+periodogram in the position domain (cogging, screw pitch).  ``h(t)`` is linear or exponential
+(warm-up) in time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from numpy.polynomial import legendre
+from scipy import signal
+
+from .. import models as _models
+from .idim import Array, LinearModel, Signals, Term
+
+# ------------------------------------------------------------------------------------------
+# column builders (full rate)
+
+
+def _qnorm(s: Signals) -> Array:
+    lo, hi = s.q_range
+    return np.clip(2.0 * (s.q - lo) / max(hi - lo, 1e-12) - 1.0, -1.0, 1.0)
+
+
+def _legendre(s: Signals, degree: int) -> Array:
+    x = _qnorm(s)
+    return np.column_stack([legendre.legval(x, np.eye(degree + 1)[d]) for d in range(1, degree + 1)])
+
+
+def _fourier(s: Signals, periods: tuple[float, ...], harmonics: int) -> Array:
+    cols = []
+    for p in periods:
+        for h in range(1, harmonics + 1):
+            w = 2 * np.pi * h / p
+            cols += [np.sin(w * s.q), np.cos(w * s.q)]
+    return np.column_stack(cols)
+
+
+def _basis(s: Signals, h: tuple) -> Array:
+    kind = h[0]
+    if kind == 0:  # legendre degree
+        return _legendre(s, int(h[1]))
+    return _fourier(s, tuple(h[2:]), int(h[1]))
+
+
+def _basis_names(prefix: str, h: tuple) -> tuple[str, ...]:
+    if h[0] == 0:
+        return tuple(f"{prefix}_P{d}" for d in range(1, int(h[1]) + 1))
+    names = []
+    for p in h[2:]:
+        for k in range(1, int(h[1]) + 1):
+            names += [f"{prefix}_sin{k}_{p * 1e3:.4g}mm", f"{prefix}_cos{k}_{p * 1e3:.4g}mm"]
+    return tuple(names)
+
+
+def _play(s: Signals, delta: float) -> Array:
+    """Maxwell-slip element of unit break force and break displacement ``delta`` (compiled core)."""
+    m = _models.MaxwellSlip(k=[1.0 / delta], w=[1.0])
+    return _models.simulate_friction(m, s.t + 0.0, s.q)
+
+
+def _compliance(s: Signals, fn: float, zeta: float) -> Array:
+    w = 2 * np.pi * fn
+    # (H - 1) qdd with H = (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2): -s^2/(...) qdd
+    b, a = signal.bilinear([-1.0, 0.0, 0.0], [1.0, 2 * zeta * w, w * w], fs=s.fs)
+    return signal.lfilter(b, a, s.qdd)
+
+
+def _drift(s: Signals, tau_frac: float) -> Array:
+    T = max(s.duration, 1e-9)
+    h = (s.t / T - 0.5) if tau_frac <= 0 else np.exp(-s.t / (tau_frac * T))
+    return np.column_stack([np.sign(s.qd) * h, s.qd * h])
+
+
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One catalogue entry.
+
+    Attributes
+    ----------
+    name : str
+        Catalogue name (e.g. ``"stribeck"``).
+    description : str
+        The physical effect in one line.
+    evidence : str
+        Residual test (see :mod:`gmsfric.loop.residuals`) that points at this effect.
+    variants : callable
+        ``variants(model, est_signals, residual_rows) -> list[LinearModel]``: the candidate
+        extended models (unfitted), one per value of the effect's nonlinear parameters.
+    """
+
+    name: str
+    description: str
+    evidence: str
+    variants: Callable[[LinearModel, Signals, Array], list[LinearModel]]
+
+    def applicable(self, model: LinearModel) -> bool:
+        return self.name not in model.effects and not (self.name == "offset" and any(t.name == "offset" for t in model.terms))
+
+
+def _add(model: LinearModel, term: Term, effect: str) -> LinearModel:
+    m = model.copy()
+    m.terms.append(term)
+    m.effects.append(effect)
+    return m
+
+
+def _asymmetric(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    has_offset = any(t.name == "offset" for t in model.terms)
+    if has_offset:
+        eps = 0.02 * s.v_scale
+        t = Term("asymmetric_friction", ("dFv_asym", "dF_moving"), lambda s, h: np.column_stack([np.abs(s.qd), (np.abs(s.qd) > h[0]).astype(float)]), (eps,), ())
+    else:
+        t = Term("asymmetric_friction", ("dFv_asym", "dFc_asym"), lambda s, h: np.column_stack([np.abs(s.qd), np.ones_like(s.qd)]))
+    return [_add(model, t, "asymmetric_friction")]
+
+
+def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    out = []
+    for delta in (1.0, 2.0):
+        for vs in s.v_scale * np.geomspace(0.003, 0.5, 14):
+            t = Term("stribeck", ("Fs_minus_Fc",), lambda s, h: np.sign(s.qd) * np.exp(-np.abs(s.qd / h[0]) ** h[1]), (float(vs), delta), ("vs", "stribeck_delta"))
+            out.append(_add(model, t, "stribeck"))
+    return out
+
+
+def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    out = []
+    span = float(np.ptp(s.q))
+    for dmax in np.geomspace(2e-7, 2e-3, 13):
+        if dmax > 0.2 * span:
+            break
+        deltas = (float(dmax), float(dmax) / 5.0, float(dmax) / 25.0)
+        t = Term("presliding_hysteresis", tuple(f"w_block{i + 1}" for i in range(3)), lambda s, h: np.column_stack([_play(s, d) for d in h]), deltas, tuple(f"Delta_block{i + 1}" for i in range(3)))
+        out.append(_add(model, t, "presliding_hysteresis"))
+    return out
+
+
+def position_periods(s: Signals, r: Array, odd: bool, n_peaks: int = 2) -> list[float]:
+    """Periods (m) of the strongest peaks of the residual's periodogram in the position domain.
+
+    The residual (times ``sign(qd)`` when ``odd``) is averaged on a uniform position grid and
+    Fourier transformed; peaks are ranked by power against the median level.
+    """
+    grid, prof = position_profile(s, r, odd)
+    if prof is None:
+        return []
+    freqs, power = position_periodogram(grid, prof)
+    if freqs.size < 4:
+        return []
+    idx, _ = signal.find_peaks(power)
+    idx = idx[np.argsort(power[idx])[::-1]][:n_peaks]
+    span = grid[-1] - grid[0]
+    return [float(1.0 / freqs[i]) for i in idx if 1.0 / freqs[i] < span / 2.5]
+
+
+def position_profile(s: Signals, r: Array, odd: bool, n_grid: int | None = None) -> tuple[Array, Array | None]:
+    """Residual (or residual times ``sign(qd)``) averaged in uniform position bins."""
+    q, qd = s.rows["q"], s.rows["qd"]
+    moving = (np.abs(qd) > 0.05 * s.v_scale) & np.isfinite(r)
+    if moving.sum() < 50:
+        return np.zeros(0), None
+    x = r * np.sign(qd) if odd else r
+    lo, hi = np.percentile(q[moving], [0.5, 99.5])
+    n_grid = n_grid or int(np.clip(moving.sum() // 8, 32, 1024))
+    edges = np.linspace(lo, hi, n_grid + 1)
+    i = np.clip(np.searchsorted(edges, q[moving]) - 1, 0, n_grid - 1)
+    cnt = np.bincount(i, minlength=n_grid)
+    tot = np.bincount(i, weights=x[moving], minlength=n_grid)
+    prof = np.where(cnt > 0, tot / np.maximum(cnt, 1), np.nan)
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    good = np.isfinite(prof)
+    if good.sum() < 16:
+        return centres, None
+    prof = np.interp(centres, centres[good], prof[good])
+    return centres, prof - prof.mean()
+
+
+def position_periodogram(grid: Array, prof: Array) -> tuple[Array, Array]:
+    """Spatial frequencies (1/m) and periodogram of a position profile (DC removed, Hann window)."""
+    dq = grid[1] - grid[0]
+    win = np.hanning(prof.size)
+    spec = np.abs(np.fft.rfft((prof - prof.mean()) * win)) ** 2
+    freqs = np.fft.rfftfreq(prof.size, dq)
+    return freqs[1:], spec[1:]
+
+
+def _position_variants(model: LinearModel, s: Signals, r: Array, odd: bool, name: str) -> list[LinearModel]:
+    prefix = "dFc_q" if odd else "Fq"
+    hypers: list[tuple] = [(0, d) for d in (1, 2, 3, 4, 6, 8)]
+    periods = position_periods(s, r, odd)
+    for p in periods:
+        for nh in (1, 2, 3):
+            hypers.append((1, nh, p))
+    if len(periods) > 1:
+        hypers.append((1, 2, *periods))
+    out = []
+    for h in hypers:
+        if odd:
+            t = Term(name, _basis_names(prefix, h), lambda s, h: np.sign(s.qd)[:, None] * _basis(s, h), h, ())
+        else:
+            t = Term(name, _basis_names(prefix, h), lambda s, h: _basis(s, h), h, ())
+        out.append(_add(model, t, name))
+    return out
+
+
+def _pos_friction(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    return _position_variants(model, s, r, True, "position_dependent_friction")
+
+
+def _pos_force(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    return _position_variants(model, s, r, False, "position_dependent_force")
+
+
+def _delay(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    out = []
+    for steps in np.concatenate((np.arange(0.25, 4, 0.25), np.arange(4, 30, 1.0))):
+        m = model.copy()
+        m.delay = float(steps * s.dt)
+        m.effects.append("input_delay")
+        out.append(m)
+    return out
+
+
+def _drift_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    out = []
+    for tau in (0.0, 0.05, 0.15, 0.4, 1.0):
+        t = Term("friction_drift", ("dFc_drift", "dFv_drift"), lambda s, h: _drift(s, h[0]), (tau,), ("drift_tau_over_T",))
+        out.append(_add(model, t, "friction_drift"))
+    return out
+
+
+def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    out = []
+    f_hi = 0.4 * s.fs / s.dec
+    for fn in np.geomspace(2.0, f_hi, 18):
+        for zeta in (0.05, 0.15, 0.4):
+            t = Term("compliance", ("m_load",), lambda s, h: _compliance(s, h[0], h[1]), (float(fn), zeta), ("fn_hz", "zeta"))
+            out.append(_add(model, t, "compliance"))
+    return out
+
+
+def _offset(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    return [_add(model, Term("offset", ("offset",), lambda s, h: np.ones_like(s.q)), "offset")]
+
+
+CATALOGUE: dict[str, Effect] = {
+    e.name: e
+    for e in (
+        Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric),
+        Effect("stribeck", "friction falls from a break-away level at low speed (Stribeck curve)", "velocity", _stribeck),
+        Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding),
+        Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
+        Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
+        Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay),
+        Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
+        Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants),
+        Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
+    )
+}

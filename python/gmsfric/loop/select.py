@@ -1,0 +1,369 @@
+"""The identification loop: baseline, residual analysis, one effect at a time, held-out test.
+
+Each round every applicable catalogue effect is fitted on the estimation rows (its nonlinear
+parameters chosen by blocked cross-validation *inside* the estimation rows), then ranked by
+that cross-validated gain.  The best-ranked effect that passes all three tests is added:
+
+1. held-out error drops by at least ``min_gain`` (relative);
+2. the drop is larger than noise would give: paired test over contiguous chunks of the held-out
+   rows, ``t = mean(d) / se(d) > t_threshold`` with ``d`` the per-chunk decrease of the squared
+   error;
+3. the Bayesian information criterion on the estimation rows decreases (grid-selected
+   nonlinear parameters count as parameters).
+
+The loop stops when no effect passes.  Residual structure left at the end is reported as
+unexplained, with the variable it correlates with.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from .._progress import Progress
+from ..errors import IdentificationError
+from .data import AxisData
+from .effects import CATALOGUE, Effect
+from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, lstsq, relative_error
+from .residuals import Finding, analyse
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Settings of :func:`run_loop`.
+
+    Parameters
+    ----------
+    preprocessing : Preprocessing
+        Filter and decimation (the EMPS recipe by default).
+    baseline : sequence of str
+        Baseline terms among ``inertia, viscous, coulomb, offset`` (default: the EMPS reference
+        model, all four).
+    effects : sequence of str, optional
+        Catalogue effects to try (default: all of :data:`gmsfric.loop.CATALOGUE`).
+    holdout_fraction : float
+        Without a validation run: fraction of the estimation run held out, as interleaved
+        contiguous blocks.
+    n_blocks : int
+        Number of blocks the run is cut into for that split.
+    inner_folds : int
+        Folds of the blocked cross-validation on the estimation rows.
+    t_threshold : float
+        Paired-chunk t statistic the held-out improvement must exceed.
+    min_gain : float
+        Smallest relative decrease of the held-out error that counts (0.01 = 1 %).
+    max_effects : int
+        Upper bound on the number of added effects.
+    seed : int
+        Seed of the residual tests' surrogates.
+    progress : bool
+        Show progress on stderr.
+    """
+
+    preprocessing: Preprocessing = Preprocessing()
+    baseline: Sequence[str] = REFERENCE_MODEL
+    effects: Sequence[str] | None = None
+    holdout_fraction: float = 0.3
+    n_blocks: int = 10
+    inner_folds: int = 5
+    t_threshold: float = 3.0
+    min_gain: float = 0.01
+    max_effects: int = 6
+    seed: int = 0
+    progress: bool = True
+
+
+@dataclass
+class Split:
+    """Estimation and held-out rows: ``(signals, row mask)`` each."""
+
+    est: Signals
+    est_rows: Array
+    val: Signals
+    val_rows: Array
+    holdout: str
+
+    def errors(self, m: LinearModel) -> tuple[float, float]:
+        e = relative_error(self.est.y[self.est_rows], m.predict(self.est)[self.est_rows])
+        v = relative_error(self.val.y[self.val_rows], m.predict(self.val)[self.val_rows])
+        return e, v
+
+
+@dataclass
+class Step:
+    """One tested effect.
+
+    Attributes
+    ----------
+    round : int
+        Loop round (1 = first effect tried on top of the baseline).
+    effect : str
+    accepted : bool
+    reason : str
+        Why it was accepted or rejected.
+    evidence : dict
+        The residual test pointing at this effect before the step (see :class:`Finding`),
+        plus the cross-validation gain, held-out t statistic and BIC change.
+    estimation_error_pct, validation_error_pct : float
+        Errors of the model with this effect.
+    parameters : dict
+        ``{name: {"value", "std"}}`` of the extended model.
+    """
+
+    round: int
+    effect: str
+    accepted: bool
+    reason: str
+    evidence: dict[str, Any]
+    estimation_error_pct: float
+    validation_error_pct: float
+    parameters: dict[str, dict[str, float]]
+    model: LinearModel | None = field(default=None, repr=False)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "round": self.round,
+            "effect": self.effect,
+            "accepted": self.accepted,
+            "reason": self.reason,
+            "evidence": self.evidence,
+            "estimation_error_pct": round(self.estimation_error_pct, 4),
+            "validation_error_pct": round(self.validation_error_pct, 4),
+            "parameters": _round_params(self.parameters),
+        }
+
+
+def _round_params(p: dict[str, dict[str, float]]) -> dict[str, dict[str, float | None]]:
+    def r(x: float) -> float | None:
+        return None if not np.isfinite(x) else float(f"{x:.6g}")
+
+    return {k: {"value": r(v["value"]), "std": r(v["std"])} for k, v in p.items()}
+
+
+@dataclass
+class LoopResult:
+    """Outcome of :func:`run_loop` (``as_dict()`` gives the JSON of ``gmsfric loop``)."""
+
+    split: Split
+    baseline: LinearModel
+    baseline_errors: tuple[float, float]
+    steps: list[Step]
+    final: LinearModel
+    final_errors: tuple[float, float]
+    unexplained: list[dict[str, Any]]
+    findings: dict[str, list[Finding]]
+    closed_loop: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def effects(self) -> list[str]:
+        """Accepted effects, in order."""
+        return list(self.final.effects)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "estimation": self.split.est.data.source,
+            "validation": self.split.holdout,
+            "baseline": {
+                "model": self.baseline.describe(),
+                "estimation_error_pct": round(self.baseline_errors[0], 4),
+                "validation_error_pct": round(self.baseline_errors[1], 4),
+                "parameters": _round_params(self.baseline.params()),
+            },
+            "steps": [s.as_dict() for s in self.steps],
+            "final": {
+                "effects": self.effects,
+                "model": self.final.describe() + "".join(f" + {e}" for e in self.final.effects if e != "input_delay" and e not in self.final.describe()),
+                "estimation_error_pct": round(self.final_errors[0], 4),
+                "validation_error_pct": round(self.final_errors[1], 4),
+                "parameters": _round_params(self.final.params()),
+            },
+            "unexplained": self.unexplained,
+            "residual_tests": {k: [f.as_dict() for f in v] for k, v in self.findings.items()},
+            "closed_loop": self.closed_loop,
+        }
+
+
+def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
+    """Preprocess the runs and choose the held-out rows (a validation run, or interleaved
+    blocks of the estimation run)."""
+    s = Signals(est, cfg.preprocessing)
+    if val is not None:
+        v = Signals(val, cfg.preprocessing, q_range=s.q_range)
+        return Split(s, np.ones(s.n_rows, bool), v, np.ones(v.n_rows, bool), val.source)
+    n = s.n_rows
+    nb = max(3, cfg.n_blocks)
+    block = np.minimum((np.arange(n) * nb) // n, nb - 1)
+    n_val = max(1, int(round(cfg.holdout_fraction * nb)))
+    val_blocks = np.round(np.linspace(1, nb - 2, n_val)).astype(int) if n_val < nb - 1 else np.arange(1, nb, 2)
+    val_mask = np.isin(block, val_blocks)
+    return Split(s, ~val_mask, s, val_mask, f"{est.source} (held-out blocks {', '.join(str(b + 1) for b in val_blocks)} of {nb})")
+
+
+def _cv_sse(X: Array, y: Array, folds: int) -> float:
+    n = y.size
+    idx = np.minimum((np.arange(n) * folds) // n, folds - 1)
+    sse = 0.0
+    for k in range(folds):
+        te = idx == k
+        theta, _ = lstsq(X[~te], y[~te])
+        r = y[te] - X[te] @ theta
+        sse += float(r @ r)
+    return sse
+
+
+def _chunk_t(r0: Array, r1: Array, chunk: int) -> float:
+    m = r0.size // chunk
+    if m < 3:
+        d = r0**2 - r1**2
+        return float(d.mean() / (d.std(ddof=1) / np.sqrt(d.size) + 1e-300))
+    d = np.array([(r0[i * chunk : (i + 1) * chunk] ** 2).sum() - (r1[i * chunk : (i + 1) * chunk] ** 2).sum() for i in range(m)])
+    return float(d.mean() / (d.std(ddof=1) / np.sqrt(m) + 1e-300))
+
+
+def _evaluate(split: Split, m: LinearModel, cfg: LoopConfig) -> tuple[float, float]:
+    """Blocked CV SSE on estimation rows, and the number of rows."""
+    X = m.X(split.est)[split.est_rows]
+    return _cv_sse(X, split.est.y[split.est_rows], cfg.inner_folds), float(X.shape[0])
+
+
+def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | None = None) -> LoopResult:
+    """Fit the baseline, then add catalogue effects one at a time while held-out data agree.
+
+    Parameters
+    ----------
+    est : AxisData
+        Estimation run.
+    val : AxisData, optional
+        Validation run (cross-test).  Without it, interleaved blocks of ``est`` are held out.
+    config : LoopConfig, optional
+
+    Returns
+    -------
+    LoopResult
+        Baseline, steps, final model, errors (``100 ||f - f_hat|| / ||f||`` on the decimated
+        force rows), unexplained residual structure and the residual tests.
+    """
+    cfg = config or LoopConfig()
+    names = list(cfg.effects) if cfg.effects is not None else list(CATALOGUE)
+    unknown = [n for n in names if n not in CATALOGUE]
+    if unknown:
+        raise IdentificationError(f"unknown effect(s) {unknown}; catalogue: {', '.join(CATALOGUE)}")
+    for b in cfg.baseline:
+        if b not in BASE_TERMS:
+            raise IdentificationError(f"unknown baseline term {b!r}; use {', '.join(BASE_TERMS)}")
+    split = make_split(est, val, cfg)
+    S, er = split.est, split.est_rows
+    n_est = int(er.sum())
+    chunk = max(10, int(round(1.0 / (S.dt * S.dec))))  # ~1 s of rows per chunk
+    chunk = min(chunk, max(10, int(split.val_rows.sum()) // 12))
+
+    base = LinearModel([BASE_TERMS[b] for b in cfg.baseline]).fit(S, er)
+    base_err = split.errors(base)
+    current = base
+    cur_err = base_err
+    steps: list[Step] = []
+    findings: dict[str, list[Finding]] = {}
+    rnd = 0
+    with Progress("gmsfric loop", enabled=cfg.progress) as prog:
+        while len(current.effects) < cfg.max_effects:
+            rnd += 1
+            y_hat = current.predict(S)
+            r = S.y - y_hat
+            fnd = {f.variable: f for f in _analyse_rows(S, er, r, y_hat, cfg.seed)}
+            r_est = np.where(er, r, np.nan)
+            if rnd == 1:
+                findings["baseline_estimation"] = list(fnd.values())
+            cv_cur, _ = _evaluate(split, current, cfg)
+            sse_cur = float(((S.y - current.predict(S))[er] ** 2).sum())
+            cands: list[tuple[float, Effect, LinearModel]] = []
+            for eff in (CATALOGUE[n] for n in names):
+                if not eff.applicable(current):
+                    continue
+                best: tuple[float, LinearModel] | None = None
+                for m in eff.variants(current, S, r_est):
+                    try:
+                        cv, _ = _evaluate(split, m, cfg)
+                    except (IdentificationError, np.linalg.LinAlgError, ValueError):
+                        continue
+                    if best is None or cv < best[0]:
+                        best = (cv, m)
+                    prog.update(note=f"round {rnd}: {eff.name}")
+                if best is not None:
+                    cands.append((1.0 - best[0] / cv_cur, eff, best[1]))
+            cands.sort(key=lambda c: -c[0])
+            accepted = None
+            for gain_cv, eff, m in cands:
+                m.fit(S, er)
+                e_est, e_val = split.errors(m)
+                r0 = (split.val.y - current.predict(split.val))[split.val_rows]
+                r1 = (split.val.y - m.predict(split.val))[split.val_rows]
+                t = _chunk_t(r0, r1, chunk)
+                sse_new = float(((S.y - m.predict(S))[er] ** 2).sum())
+                dbic = n_est * np.log(sse_new / sse_cur) + (m.n_params - current.n_params) * np.log(n_est)
+                val_gain = 1.0 - e_val / cur_err[1]
+                ev: dict[str, Any] = {}
+                f = fnd.get(eff.evidence)
+                if f is not None:
+                    ev["residual_test"] = f.as_dict()
+                ev.update(cv_gain=round(gain_cv, 5), validation_gain=round(val_gain, 5), t_heldout=round(t, 2), delta_bic=round(float(dbic), 1))
+                reasons = []
+                if gain_cv <= 0:
+                    reasons.append("no cross-validated gain on estimation data")
+                if val_gain < cfg.min_gain:
+                    reasons.append(f"held-out error gain {100 * val_gain:.2f} % < {100 * cfg.min_gain:.2f} %")
+                if t < cfg.t_threshold:
+                    reasons.append(f"held-out gain within noise (t = {t:.2f} < {cfg.t_threshold})")
+                if dbic >= 0:
+                    reasons.append(f"BIC does not decrease ({dbic:+.1f})")
+                ok = not reasons and accepted is None
+                if ok:
+                    reason = f"held-out error {cur_err[1]:.3f} -> {e_val:.3f} % (t = {t:.1f}), BIC {dbic:+.1f}"
+                elif not reasons:
+                    reason = "passes, but a better-ranked effect was added this round"
+                else:
+                    reason = "; ".join(reasons)
+                steps.append(Step(rnd, eff.name, ok, reason, ev, e_est, e_val, m.params(), m))
+                if ok:
+                    accepted = (m, (e_est, e_val))
+            if accepted is None:
+                break
+            current, cur_err = accepted
+    y_hat = current.predict(S)
+    r = S.y - y_hat
+    final_f = _analyse_rows(S, er, r, y_hat, cfg.seed)
+    findings["final_estimation"] = final_f
+    unexplained = []
+    for f in final_f:
+        if f.significant:
+            tried = [e for e in f.suggests if e in names]
+            unexplained.append({"variable": f.variable, "run": "estimation", "z": round(f.z, 1), "statistic": round(f.statistic, 5),
+                                "candidates_tried": tried, "note": "residual still depends on " + f.variable + "; no catalogue effect reduced the held-out error enough",
+                                **{k: v for k, v in f.detail.items()}})
+    if split.val is not split.est:
+        yv = current.predict(split.val)
+        fv = analyse(split.val, split.val.y - yv, yv, seed=cfg.seed)
+        findings["final_validation"] = fv
+        for f in fv:
+            if f.significant:
+                unexplained.append({"variable": f.variable, "run": "validation", "z": round(f.z, 1), "statistic": round(f.statistic, 5),
+                                    "candidates_tried": [e for e in f.suggests if e in names], "note": "structure in the held-out run's residual", **{k: v for k, v in f.detail.items()}})
+    return LoopResult(split, base, base_err, steps, current, cur_err, unexplained, findings)
+
+
+def _analyse_rows(S: Signals, rows: Array, r: Array, y_hat: Array, seed: int) -> list[Finding]:
+    """Residual tests on a subset of rows (contiguous blocks are concatenated)."""
+    if rows.all():
+        return analyse(S, r, y_hat, seed=seed)
+    sub = _SubSignals(S, rows)
+    return analyse(sub, r[rows], y_hat[rows], seed=seed)  # type: ignore[arg-type]
+
+
+class _SubSignals:
+    """A view of some rows of a :class:`Signals` for the residual tests."""
+
+    def __init__(self, s: Signals, rows: Array) -> None:
+        self.dt, self.dec, self.fs, self.v_scale = s.dt, s.dec, s.fs, s.v_scale
+        self.y = s.y[rows]
+        self.rows = {k: v[rows] for k, v in s.rows.items()}
