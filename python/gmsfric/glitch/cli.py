@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     sin = run_sinusoid(plant, static, gms, ctrl, plants=plants, **common)  # type: ignore[arg-type]
     circ = run_circle(plant, static, gms, ctrl, radius=args.amplitude, frequency=args.frequency, dt=args.dt)
     comp = run_compensation(plant, None, static, gms, ctrl, advance=args.ff_advance, ff_gain=args.ff_gain, **common)  # type: ignore[arg-type]
-    out = {
+    out: dict[str, Any] = {
         "sinusoid": sin.summary(),
         "circle": circ.summary(),
         "compensation": comp.summary(),

@@ -187,7 +187,7 @@ def run_compensation(
         "static_feedforward": friction_feedforward(static, t, r, plant.force_gain, advance=adv, gain=ff_gain),
         "gms_feedforward": friction_feedforward(gms, t, r, plant.force_gain, advance=adv, gain=ff_gain),
     }
-    jobs = [dict(plant=plant, friction=None, controller=controller, reference=r, dt=dt, initial_velocity=v0)]
+    jobs: list[dict[str, Any]] = [dict(plant=plant, friction=None, controller=controller, reference=r, dt=dt, initial_velocity=v0)]
     jobs += [dict(plant=plant, friction=true_friction, controller=controller, reference=r, dt=dt, initial_velocity=v0, feedforward=ffs[k]) for k in STRATEGIES]
     results = _simulate_many(jobs)
     base = results[0].error

@@ -90,9 +90,9 @@ def sinusoid_reference(amplitude: float, frequency: float, dt: float, periods: f
     n = int(round(periods / frequency / dt)) + 1
     if n < 3:
         raise InvalidInputError(f"`dt` = {dt} is too coarse for {periods} period(s) at {frequency} Hz")
-    t = np.arange(n) * dt
+    t = np.asarray(np.arange(n) * dt, dtype=np.float64)
     w = 2.0 * np.pi * frequency
-    return t, amplitude * np.sin(w * t + phase), amplitude * w * np.cos(phase)
+    return t, np.asarray(amplitude * np.sin(w * t + phase), dtype=np.float64), float(amplitude * w * np.cos(phase))
 
 
 @dataclass(frozen=True)
