@@ -146,3 +146,28 @@ def covariance_from_jacobian(jac: NDArray[np.float64], residual: NDArray[np.floa
     cov[bad, :] = np.inf
     cov[:, bad] = np.inf
     return cov * s2
+
+
+def autocorrelation_inflation(residual: NDArray[np.float64], c: float = 5.0) -> float:
+    """Integrated autocorrelation time ``1 + 2 sum_k rho_k`` of a residual series (Sokal's
+    automatic window ``M >= c tau``), at least 1.
+
+    A Jacobian covariance assumes white residuals; multiplying it by this factor accounts for
+    residuals that are correlated in time (unmodelled sensor effects such as quantisation), so
+    the reported standard errors stay honest.
+    """
+    r = np.asarray(residual, dtype=float)
+    r = r - r.mean()
+    n = r.size
+    if n < 8 or not np.any(r):
+        return 1.0
+    m = 1 << int(np.ceil(np.log2(2 * n)))
+    fr = np.fft.rfft(r, m)
+    acf = np.fft.irfft(fr * np.conj(fr), m)[:n]
+    acf /= acf[0]
+    tau = 1.0
+    for k in range(1, n):
+        tau += 2.0 * acf[k]
+        if k >= c * tau:
+            break
+    return float(max(tau, 1.0))
