@@ -16,6 +16,7 @@ from .errors import GmsfricError
 
 COMMAND_MODULES = [
     "gmsfric.demo",
+    "gmsfric.loop.cli",
     "gmsfric.glitch.cli",
 ]
 

@@ -173,9 +173,13 @@ impl Gms {
         check_fractions("alpha", &alpha)?;
         check::positive("c", c)?;
         check::non_negative("sigma", sigma)?;
+    /// Memo of the last slip decay factor: `(s, dt, exp(-rate(s) dt))`. At speeds where the
+    /// Stribeck curve has settled, `s == fc` exactly on every step and the division and the
+    /// exponential are skipped (same inputs, same bits).
+    decay_memo: (f64, f64, f64),
         let n = k.len();
         let total_k = k.iter().sum();
-        Ok(Self { stribeck, k, alpha, c, sigma, slip_law, forces: vec![0.0; n], modes: vec![Mode::Stick; n], total_k })
+        Ok(Self { stribeck, k, alpha, c, sigma, slip_law, forces: vec![0.0; n], modes: vec![Mode::Stick; n], total_k, decay_memo: (f64::NAN, f64::NAN, 0.0) })
     }
 
     /// Number of blocks.
@@ -213,9 +217,18 @@ impl FrictionElement for Gms {
         let dir = dx.signum();
         // One Stribeck evaluation and one exponential per step, shared by all blocks.
         let s = self.stribeck.eval(v);
-        let rate = match self.slip_law {
-            SlipLaw::Time => self.c / s.max(f64::MIN_POSITIVE),
-            SlipLaw::Displacement => self.c * v.abs(),
+        let decay = match self.slip_law {
+            SlipLaw::Time => {
+                if s == self.decay_memo.0 && dt == self.decay_memo.1 {
+                    self.decay_memo.2
+                } else {
+                    let rate = self.c / s.max(f64::MIN_POSITIVE);
+                    let decay = (-rate * dt).exp();
+                    self.decay_memo = (s, dt, decay);
+                    decay
+                }
+            }
+            SlipLaw::Displacement => (-(self.c * v.abs()) * dt).exp(),
         };
         let decay = (-rate * dt).exp();
         let mut total = 0.0;

@@ -16,6 +16,9 @@ pub struct Stribeck {
     /// Shape exponent (1 = exponential, 2 = Gaussian).
     pub delta: f64,
     inv_vs: f64,
+    /// Beyond this exponent `(fs - fc) exp(-p)` is below a quarter of the spacing of doubles
+    /// around `fc`, so `s = fc` exactly and the exponential can be skipped without changing a bit.
+    p_cut: f64,
 }
 
 impl Stribeck {
@@ -25,7 +28,23 @@ impl Stribeck {
         check::non_negative("fs", fs)?;
         check::positive("vs", vs)?;
         check::positive("delta", delta)?;
-        Ok(Self { fc, fs, vs, delta, inv_vs: 1.0 / vs })
+        Ok(Self { fc, fs, vs, delta, inv_vs: 1.0 / vs, p_cut: Self::exponent_cut(fc, fs) })
+    }
+
+    /// The exponent `p` above which `fc + (fs - fc) exp(-p)` rounds to `fc` (with a factor-16
+    /// margin for the rounding of `exp` and of the product); `inf` when `fc` is zero or subnormal.
+    fn exponent_cut(fc: f64, fs: f64) -> f64 {
+        let dip = (fs - fc).abs();
+        if dip == 0.0 {
+            return f64::NEG_INFINITY; // s(v) = fc + 0 * exp(-p) = fc for every finite p
+        }
+        if fc < f64::MIN_POSITIVE || !fc.is_finite() {
+            return f64::INFINITY;
+        }
+        // Spacing of doubles just below fc is at least ulp(fc) / 2: a term below ulp(fc) / 4 is
+        // lost in either direction under round-to-nearest. Require dip * exp(-p) <= ulp(fc) / 16.
+        let ulp = f64::from_bits(fc.to_bits() + 1) - fc;
+        (dip * 16.0 / ulp).ln()
     }
 
     /// A curve with no Stribeck dip: `s(v) = level` for every v.
@@ -44,6 +63,10 @@ impl Stribeck {
         } else {
             r.powf(self.delta)
         };
+        if p > self.p_cut {
+            // exp(-p) cannot change the sum: skip it (the result is bit-identical).
+            return self.fc;
+        }
         self.fc + (self.fs - self.fc) * (-p).exp()
     }
 

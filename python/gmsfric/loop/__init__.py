@@ -1,1 +1,46 @@
-"""Residual-driven identification loop (issue 5)."""
+"""Residual-driven identification loop (issue 5): measured data -> baseline -> residual analysis
+-> effect catalogue -> justified, better model, with before/after errors.
+
+Typical use::
+
+    from gmsfric.loop import load_axis_data, run_loop, format_table
+    est = load_axis_data("run1.mat", time="t", position="qm", command="vir", gain="gtau")
+    val = load_axis_data("run2.mat", time="t", position="qm", command="vir", gain="gtau")
+    result = run_loop(est, val)
+    print(format_table(result))
+
+See ``docs/loop.md`` for the method and the EMPS results.
+"""
+
+from __future__ import annotations
+
+from .closedloop import closed_loop_report, simulate_model
+from .data import AxisData, load_axis_data
+from .effects import CATALOGUE, Effect
+from .idim import LinearModel, Preprocessing, Signals, fit_baseline, reference_model, relative_error
+from .report import format_table, save_figures
+from .residuals import Finding, analyse
+from .select import LoopConfig, LoopResult, Step, run_loop
+
+__all__ = [
+    "AxisData",
+    "load_axis_data",
+    "Preprocessing",
+    "Signals",
+    "LinearModel",
+    "fit_baseline",
+    "reference_model",
+    "relative_error",
+    "Effect",
+    "CATALOGUE",
+    "Finding",
+    "analyse",
+    "LoopConfig",
+    "LoopResult",
+    "Step",
+    "run_loop",
+    "simulate_model",
+    "closed_loop_report",
+    "format_table",
+    "save_figures",
+]

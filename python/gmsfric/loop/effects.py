@@ -119,6 +119,11 @@ class Effect:
     description: str
     evidence: str
     variants: Callable[[LinearModel, Signals, Array], list[LinearModel]]
+    physical: Callable[[dict[str, dict[str, float]]], str | None] | None = None
+
+    def check(self, model: LinearModel) -> str | None:
+        """Why the fitted ``model`` is not physical for this effect (``None`` when it is)."""
+        return None if self.physical is None else self.physical(model.params())
 
     def applicable(self, model: LinearModel) -> bool:
         return self.name not in model.effects and not (self.name == "offset" and any(t.name == "offset" for t in model.terms))
@@ -240,7 +245,7 @@ def _pos_force(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
 
 def _delay(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
-    for steps in np.concatenate((np.arange(0.25, 4, 0.25), np.arange(4, 30, 1.0))):
+    for steps in np.concatenate((np.arange(0.1, 1.0, 0.1), np.arange(1.0, 4, 0.25), np.arange(4, 30, 1.0))):
         m = model.copy()
         m.delay = float(steps * s.dt)
         m.effects.append("input_delay")
@@ -260,7 +265,7 @@ def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[Linea
     out = []
     f_hi = 0.4 * s.fs / s.dec
     for fn in np.geomspace(2.0, f_hi, 18):
-        for zeta in (0.05, 0.15, 0.4):
+        for zeta in (0.05, 0.15, 0.4, 0.8):
             t = Term("compliance", ("m_load",), lambda s, h: _compliance(s, h[0], h[1]), (float(fn), zeta), ("fn_hz", "zeta"))
             out.append(_add(model, t, "compliance"))
     return out
@@ -270,17 +275,34 @@ def _offset(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     return [_add(model, Term("offset", ("offset",), lambda s, h: np.ones_like(s.q)), "offset")]
 
 
+def _positive(*names: str) -> Callable[[dict[str, dict[str, float]]], str | None]:
+    def check(p: dict[str, dict[str, float]]) -> str | None:
+        for n in names:
+            if n in p and p[n]["value"] <= 0:
+                return f"{n} = {p[n]['value']:.3g} has the wrong sign"
+        return None
+
+    return check
+
+
+def _blocks_ok(p: dict[str, dict[str, float]]) -> str | None:
+    for n, v in p.items():
+        if n.startswith("w_block") and v["value"] < -2 * v["std"]:
+            return f"negative block break force {n} = {v['value']:.3g}"
+    return None
+
+
 CATALOGUE: dict[str, Effect] = {
     e.name: e
     for e in (
         Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric),
-        Effect("stribeck", "friction falls from a break-away level at low speed (Stribeck curve)", "velocity", _stribeck),
-        Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding),
+        Effect("stribeck", "friction falls from a break-away level at low speed (Stribeck curve)", "velocity", _stribeck, _positive("Fs_minus_Fc")),
+        Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
-        Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants),
+        Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _positive("m_load")),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }

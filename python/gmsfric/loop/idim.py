@@ -251,13 +251,19 @@ def lstsq(X: Array, y: Array) -> tuple[Array, Array]:
     scale = np.sqrt((X**2).sum(axis=0))
     scale[scale == 0] = 1.0
     Xs = X / scale
-    theta_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+    Q, R = np.linalg.qr(Xs)
+    try:
+        theta_s = np.linalg.solve(R, Q.T @ y)
+        if not np.all(np.isfinite(theta_s)) or np.linalg.cond(R) > 1e12:
+            raise np.linalg.LinAlgError
+        Rinv = np.linalg.inv(R)
+        cov_unit = Rinv @ Rinv.T
+    except np.linalg.LinAlgError:
+        theta_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+        cov_unit = np.linalg.pinv(Xs.T @ Xs)
     r = y - Xs @ theta_s
     sigma2 = float(r @ r) / (X.shape[0] - X.shape[1])
-    try:
-        cov_s = sigma2 * np.linalg.pinv(Xs.T @ Xs)
-    except np.linalg.LinAlgError:  # pragma: no cover
-        cov_s = np.full((X.shape[1], X.shape[1]), np.nan)
+    cov_s = sigma2 * cov_unit
     theta = theta_s / scale
     cov = cov_s / np.outer(scale, scale)
     return theta, cov

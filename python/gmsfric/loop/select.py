@@ -129,10 +129,14 @@ class Step:
             "accepted": self.accepted,
             "reason": self.reason,
             "evidence": self.evidence,
-            "estimation_error_pct": round(self.estimation_error_pct, 4),
-            "validation_error_pct": round(self.validation_error_pct, 4),
+            "estimation_error_pct": _num(self.estimation_error_pct),
+            "validation_error_pct": _num(self.validation_error_pct),
             "parameters": _round_params(self.parameters),
         }
+
+
+def _num(x: float) -> float | None:
+    return round(float(x), 4) if np.isfinite(x) else None
 
 
 def _round_params(p: dict[str, dict[str, float]]) -> dict[str, dict[str, float | None]]:
@@ -202,15 +206,30 @@ def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
 
 
 def _cv_sse(X: Array, y: Array, folds: int) -> float:
+    """Blocked K-fold cross-validated SSE, from per-fold normal equations (columns scaled)."""
     n = y.size
+    scale = np.sqrt((X**2).sum(axis=0))
+    scale[scale == 0] = 1.0
+    Xs = X / scale
     idx = np.minimum((np.arange(n) * folds) // n, folds - 1)
+    G = [(Xs[idx == k].T @ Xs[idx == k], Xs[idx == k].T @ y[idx == k]) for k in range(folds)]
+    GT = sum(g for g, _ in G)
+    bT = sum(b for _, b in G)
+    ridge = 1e-10 * np.trace(GT) / GT.shape[0]
     sse = 0.0
     for k in range(folds):
-        te = idx == k
-        theta, _ = lstsq(X[~te], y[~te])
-        r = y[te] - X[te] @ theta
+        A = GT - G[k][0] + ridge * np.eye(GT.shape[0])
+        theta = np.linalg.lstsq(A, bT - G[k][1], rcond=None)[0] if not np.all(np.isfinite(A)) else _solve(A, bT - G[k][1])
+        r = y[idx == k] - Xs[idx == k] @ theta
         sse += float(r @ r)
     return sse
+
+
+def _solve(A: Array, b: Array) -> Array:
+    try:
+        return np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
 def _chunk_t(r0: Array, r1: Array, chunk: int) -> float:
@@ -282,8 +301,13 @@ def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | No
                 if not eff.applicable(current):
                     continue
                 best: tuple[float, LinearModel] | None = None
+                why: str | None = None
                 for m in eff.variants(current, S, r_est):
                     try:
+                        if eff.physical is not None:
+                            why = eff.check(m.fit(S, er))
+                            if why is not None:
+                                continue
                         cv, _ = _evaluate(split, m, cfg)
                     except (IdentificationError, np.linalg.LinAlgError, ValueError):
                         continue
@@ -292,6 +316,10 @@ def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | No
                     prog.update(note=f"round {rnd}: {eff.name}")
                 if best is not None:
                     cands.append((1.0 - best[0] / cv_cur, eff, best[1]))
+                elif why is not None:
+                    f = fnd.get(eff.evidence)
+                    ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
+                    steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
             cands.sort(key=lambda c: -c[0])
             accepted = None
             for gain_cv, eff, m in cands:

@@ -1,0 +1,81 @@
+"""``gmsfric loop``: fit, study the residual, add justified effects, report before/after."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from ..errors import DataError
+from ..io import read_table
+from ..system import Cascade
+from .closedloop import closed_loop_report
+from .data import load_axis_data
+from .report import format_table, save_figures
+from .select import LoopConfig, run_loop
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``loop`` subcommand."""
+    p = subparsers.add_parser(
+        "loop",
+        help="identify an axis from measured data: baseline, residual analysis, justified effects, before/after",
+        description="Fit the EMPS-style inverse model, trace the residual to missing effects and add them one at a time "
+        "while held-out data confirm it.  Units: time s, position m, force N (see --*-unit).",
+    )
+    p.add_argument("est", metavar="EST", help="estimation run (.csv with a header row, or .mat)")
+    p.add_argument("--validate", metavar="VAL", help="validation run; without it, part of EST is held out")
+    p.add_argument("--time", required=True, metavar="COL")
+    p.add_argument("--position", required=True, metavar="COL")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--force", metavar="COL", help="force column (N)")
+    g.add_argument("--command", dest="command_col", metavar="COL", help="drive command column (needs --gain)")
+    p.add_argument("--gain", metavar="G", help="drive gain, N per command unit: a number or a scalar name in the file")
+    p.add_argument("--time-unit", default="s")
+    p.add_argument("--position-unit", default="m")
+    p.add_argument("--force-unit", default="N")
+    p.add_argument("--json", metavar="OUT", help="write the report as JSON")
+    p.add_argument("--plot", metavar="DIR", help="write figures (PNG) into DIR")
+    p.add_argument("--holdout", type=float, default=0.3, help="fraction of EST held out when there is no --validate (default 0.3)")
+    cl = p.add_argument_group("closed-loop simulation (optional: needs a reference and a cascade controller)")
+    cl.add_argument("--reference", metavar="COL", help="reference position column")
+    cl.add_argument("--disturbance", metavar="COL", help="input disturbance column of the validation run (command units), e.g. pulses_N")
+    cl.add_argument("--kp", metavar="K", help="cascade position gain (1/s): number or scalar name")
+    cl.add_argument("--kv", metavar="K", help="cascade velocity gain (command per m/s): number or scalar name")
+    cl.add_argument("--drive-limit", type=float, default=None, help="symmetric drive limit (command units)")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.command_col is not None and args.gain is None:
+        raise DataError("--command needs --gain (a number or a scalar name in the file)")
+    if args.force is not None and args.gain is not None:
+        raise DataError("--gain only goes with --command")
+    common = dict(time=args.time, position=args.position, force=args.force, command=args.command_col, gain=args.gain,
+                  reference=args.reference, time_unit=args.time_unit, position_unit=args.position_unit, force_unit=args.force_unit)
+    est_table = read_table(args.est)
+    est = load_axis_data(est_table, **common)
+    val = None
+    if args.validate:
+        val = load_axis_data(args.validate, disturbance=args.disturbance, **common)
+    cfg = LoopConfig(holdout_fraction=args.holdout, progress=not args.quiet)
+    result = run_loop(est, val, cfg)
+    sims = None
+    if args.reference and args.kp is not None and args.kv is not None:
+        kp, kv = est_table.number(args.kp, "kp"), est_table.number(args.kv, "kv")
+        lim = args.drive_limit
+        ctrl = Cascade(kp, kv, -lim if lim else float("-inf"), lim if lim else float("inf"))
+        runs = {"estimation": result.split.est}
+        if val is not None:
+            runs["validation"] = result.split.val
+        result.closed_loop, sims = closed_loop_report({"baseline": result.baseline, "final": result.final}, runs, ctrl)
+    print(format_table(result))
+    if args.json:
+        Path(args.json).write_text(json.dumps(result.as_dict(), indent=2))
+    if args.plot:
+        paths = save_figures(result, args.plot, sims)
+        print(f"{len(paths)} figures written to {args.plot}", file=sys.stderr)
+    return 0
