@@ -27,7 +27,9 @@ class SimulationError(GmsfricError, RuntimeError): ...
 @final
 class FrictionSpec:
     @staticmethod
-    def static_map(fc: float, fs: float, vs: float, delta: float, sigma: float, offset: float = 0.0) -> FrictionSpec: ...
+    def static_map(
+        fc: float, fs: float, vs: float, delta: float, sigma: float, offset: float = 0.0, v_linear: float = 0.0
+    ) -> FrictionSpec: ...
     @staticmethod
     def gms(
         fc: float, fs: float, vs: float, delta: float, k: list[float], alpha: list[float], c: float, sigma: float, slip_law: str = "time"
@@ -47,7 +49,7 @@ class ControllerSpec:
     def cascade(kp: float, kv: float, u_min: float, u_max: float, dt: float) -> ControllerSpec: ...
 
 def static_map_force(
-    fc: float, fs: float, vs: float, delta: float, sigma: float, v: NDArray[np.float64], offset: float = 0.0
+    fc: float, fs: float, vs: float, delta: float, sigma: float, v: NDArray[np.float64], offset: float = 0.0, v_linear: float = 0.0
 ) -> NDArray[np.float64]: ...
 def simulate_closed_loop(
     plant_params: tuple[float, float, float, float, float],

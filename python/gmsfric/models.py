@@ -78,25 +78,31 @@ class StaticFriction:
         Viscous coefficient (N s/m).
     offset : float, optional
         Constant force independent of motion (N).
+    v_linear : float, optional
+        Linear-region velocity threshold (m/s), as Simulink/Simscape friction blocks implement a
+        static map: for ``|v| < v_linear`` the force is the line through the origin and
+        ``F(v_linear)``, so the contact can never stick.  ``0`` (default) keeps true stiction.
     """
 
     stribeck: Stribeck
     sigma: float = 0.0
     offset: float = 0.0
+    v_linear: float = 0.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.stribeck, Stribeck):
             raise InvalidInputError(f"`stribeck` must be a Stribeck, got {type(self.stribeck).__name__}")
         object.__setattr__(self, "sigma", non_negative("sigma", self.sigma))
         object.__setattr__(self, "offset", finite("offset", self.offset))
+        object.__setattr__(self, "v_linear", non_negative("v_linear", self.v_linear))
 
     def force(self, v: ArrayLike) -> NDArray[np.float64]:
         """Friction force (N) at velocities ``v`` (m/s); ``F(0) = offset``."""
-        return _gmsfric.static_map_force(*self.stribeck.params, self.sigma, as_array("v", v), self.offset)
+        return _gmsfric.static_map_force(*self.stribeck.params, self.sigma, as_array("v", v), self.offset, self.v_linear)
 
     @cached_property
     def _native(self) -> _gmsfric.FrictionSpec:
-        return _gmsfric.FrictionSpec.static_map(*self.stribeck.params, self.sigma, self.offset)
+        return _gmsfric.FrictionSpec.static_map(*self.stribeck.params, self.sigma, self.offset, self.v_linear)
 
 
 def _positive_vector(name: str, values: ArrayLike) -> tuple[float, ...]:

@@ -98,13 +98,25 @@ impl FrictionElement for StaticElement {
     /// rest by the end of the step is within the break-away level, the contact sticks and supplies
     /// exactly that force; otherwise it slides with `sign(v) s(v) + sigma v`, solved implicitly in
     /// the end velocity. No chattering around zero velocity, whatever the step.
+    ///
+    /// With a linear region (`map.v_linear > 0`) the map is single-valued: inside the region the
+    /// end velocity solves `v (1 + c_v slope) = free_v`; outside, the sliding branch below.
     fn advance_coupled(&mut self, c: &Coupling, _dt: f64) -> f64 {
         let m = &self.map;
         let free_v = c.free_v - c.v_per_newton * m.offset;
-        let hold = free_v / c.v_per_newton;
-        if hold.abs() <= m.stribeck.max_level() {
-            self.last = hold + m.offset;
-            return self.last;
+        if m.v_linear > 0.0 {
+            let slope = m.linear_region_slope();
+            let v = free_v / (1.0 + c.v_per_newton * slope);
+            if v.abs() < m.v_linear {
+                self.last = slope * v + m.offset;
+                return self.last;
+            }
+        } else {
+            let hold = free_v / c.v_per_newton;
+            if hold.abs() <= m.stribeck.max_level() {
+                self.last = hold + m.offset;
+                return self.last;
+            }
         }
         let dir = free_v.signum();
         // v (1 + c_v sigma) = free_v - c_v dir s(v); s is evaluated at the current estimate of v.
@@ -161,6 +173,10 @@ pub struct Gms {
     forces: Vec<f64>,
     modes: Vec<Mode>,
     total_k: f64,
+    /// Memo of the last slip decay factor: `(s, dt, exp(-rate(s) dt))`. At speeds where the
+    /// Stribeck curve has settled, `s == fc` exactly on every step and the division and the
+    /// exponential are skipped (same inputs, same bits).
+    decay_memo: (f64, f64, f64),
 }
 
 impl Gms {
@@ -173,10 +189,6 @@ impl Gms {
         check_fractions("alpha", &alpha)?;
         check::positive("c", c)?;
         check::non_negative("sigma", sigma)?;
-    /// Memo of the last slip decay factor: `(s, dt, exp(-rate(s) dt))`. At speeds where the
-    /// Stribeck curve has settled, `s == fc` exactly on every step and the division and the
-    /// exponential are skipped (same inputs, same bits).
-    decay_memo: (f64, f64, f64),
         let n = k.len();
         let total_k = k.iter().sum();
         Ok(Self { stribeck, k, alpha, c, sigma, slip_law, forces: vec![0.0; n], modes: vec![Mode::Stick; n], total_k, decay_memo: (f64::NAN, f64::NAN, 0.0) })
@@ -230,7 +242,6 @@ impl FrictionElement for Gms {
             }
             SlipLaw::Displacement => (-(self.c * v.abs()) * dt).exp(),
         };
-        let decay = (-rate * dt).exp();
         let mut total = 0.0;
         for i in 0..self.k.len() {
             let target = dir * self.alpha[i] * s;

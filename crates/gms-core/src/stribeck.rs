@@ -85,12 +85,16 @@ pub struct StaticFriction {
     pub sigma: f64,
     /// Motion-independent force (N) added to the map.
     pub offset: f64,
+    /// Linear-region velocity threshold (m/s), as in Simulink/Simscape friction blocks: below it
+    /// the map is replaced by the straight line through the origin and `F(v_linear)`, so the
+    /// contact cannot stick. `0` (default) keeps the true set-valued stiction at `v = 0`.
+    pub v_linear: f64,
 }
 
 impl StaticFriction {
     pub fn new(stribeck: Stribeck, sigma: f64) -> Result<Self> {
         check::non_negative("sigma", sigma)?;
-        Ok(Self { stribeck, sigma, offset: 0.0 })
+        Ok(Self { stribeck, sigma, offset: 0.0, v_linear: 0.0 })
     }
 
     /// Same map with a constant force `offset` (N) added.
@@ -99,10 +103,24 @@ impl StaticFriction {
         Ok(self)
     }
 
+    /// Same map regularised below `v_linear` (m/s), see [`StaticFriction::v_linear`].
+    pub fn with_linear_region(mut self, v_linear: f64) -> Result<Self> {
+        self.v_linear = check::non_negative("v_linear", v_linear)?;
+        Ok(self)
+    }
+
+    /// Slope of the linear region `F(v_linear) / v_linear` (N s/m), without the offset.
+    pub fn linear_region_slope(&self) -> f64 {
+        (self.stribeck.eval(self.v_linear) + self.sigma * self.v_linear) / self.v_linear
+    }
+
     /// `F(v)`; zero velocity gives the offset only (the set-valued stiction is resolved by the
     /// closed-loop coupling, see [`crate::friction::FrictionElement::advance_coupled`]).
     #[inline(always)]
     pub fn force(&self, v: f64) -> f64 {
+        if v.abs() < self.v_linear {
+            return self.linear_region_slope() * v + self.offset;
+        }
         let sliding = if v > 0.0 {
             self.stribeck.eval(v)
         } else if v < 0.0 {

@@ -249,3 +249,23 @@ fn invalid_inputs_are_typed_errors() {
     assert!(matches!(simulate_position(&mut g, &[0.0, 1.0], &[0.0]), Err(CoreError::LengthMismatch { .. })));
     assert!(matches!(simulate_velocity(&mut g, 1e-3, &[]), Err(CoreError::Empty { .. })));
 }
+
+#[test]
+fn static_map_with_linear_region_cannot_stick() {
+    // Same push below break-away as in the stiction test: the regularised map creeps.
+    let plant = Plant::from_mass(10.0, 0.0, 0.0, 0.0, 1.0).unwrap();
+    let map = StaticFriction::new(Stribeck::new(1.0, 1.5, 1e-3, 1.0).unwrap(), 0.0).unwrap().with_linear_region(1e-4).unwrap();
+    let dt = 1e-3;
+    let mut ctrl = ControllerModel::Pid(Pid::new(0.0, 0.0, 0.0, 0.0, f64::NEG_INFINITY, f64::INFINITY, dt).unwrap());
+    let r = vec![0.0; 4000];
+    let ff = vec![1.4; 4000];
+    let mut input = ClosedLoopInput::new(&r, dt);
+    input.feedforward = Some(&ff);
+    let mut fr = FrictionModel::Static(StaticElement::new(map));
+    let out = simulate(&plant, Some(&mut fr), &mut ctrl, &input).unwrap();
+    // creeps at the velocity where the linear region balances the push: v = 1.4 / slope
+    let slope = map.linear_region_slope();
+    let v_end = *out.velocity.last().unwrap();
+    assert!((v_end - 1.4 / slope).abs() < 1e-3 * v_end, "{v_end} vs {}", 1.4 / slope);
+    assert!((map.force(0.5e-4) - 0.5 * map.force(1e-4)).abs() < 1e-12);
+}

@@ -31,6 +31,11 @@ fn stribeck(fc: f64, fs: f64, vs: f64, delta: f64) -> PyResult<core::Stribeck> {
     core::Stribeck::new(fc, fs, vs, delta).py()
 }
 
+#[allow(clippy::too_many_arguments)]
+fn static_friction(fc: f64, fs: f64, vs: f64, delta: f64, sigma: f64, offset: f64, v_linear: f64) -> PyResult<core::StaticFriction> {
+    core::StaticFriction::new(stribeck(fc, fs, vs, delta)?, sigma).py()?.with_offset(offset).py()?.with_linear_region(v_linear).py()
+}
+
 /// A validated friction model of the core (opaque; built by the Python model classes).
 #[pyclass(frozen, module = "gmsfric._gmsfric")]
 #[derive(Clone)]
@@ -41,9 +46,10 @@ pub struct FrictionSpec {
 #[pymethods]
 impl FrictionSpec {
     #[staticmethod]
-    #[pyo3(signature = (fc, fs, vs, delta, sigma, offset=0.0))]
-    fn static_map(fc: f64, fs: f64, vs: f64, delta: f64, sigma: f64, offset: f64) -> PyResult<Self> {
-        let map = core::StaticFriction::new(stribeck(fc, fs, vs, delta)?, sigma).py()?.with_offset(offset).py()?;
+    #[pyo3(signature = (fc, fs, vs, delta, sigma, offset=0.0, v_linear=0.0))]
+    #[allow(clippy::too_many_arguments)]
+    fn static_map(fc: f64, fs: f64, vs: f64, delta: f64, sigma: f64, offset: f64, v_linear: f64) -> PyResult<Self> {
+        let map = static_friction(fc, fs, vs, delta, sigma, offset, v_linear)?;
         Ok(Self { model: core::FrictionModel::Static(core::StaticElement::new(map)) })
     }
 
@@ -96,10 +102,10 @@ impl FrictionSpec {
 
 /// The static map `F(v)` (memoryless) evaluated on an array of velocities.
 #[pyfunction]
-#[pyo3(signature = (fc, fs, vs, delta, sigma, v, offset=0.0))]
+#[pyo3(signature = (fc, fs, vs, delta, sigma, v, offset=0.0, v_linear=0.0))]
 #[allow(clippy::too_many_arguments)]
-fn static_map_force<'py>(py: Python<'py>, fc: f64, fs: f64, vs: f64, delta: f64, sigma: f64, v: PyReadonlyArray1<'py, f64>, offset: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let map = core::StaticFriction::new(stribeck(fc, fs, vs, delta)?, sigma).py()?.with_offset(offset).py()?;
+fn static_map_force<'py>(py: Python<'py>, fc: f64, fs: f64, vs: f64, delta: f64, sigma: f64, v: PyReadonlyArray1<'py, f64>, offset: f64, v_linear: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let map = static_friction(fc, fs, vs, delta, sigma, offset, v_linear)?;
     let v = slice("v", &v)?;
     Ok(detached(py, || map.force_many(v))?.into_pyarray(py))
 }
