@@ -15,6 +15,7 @@ from typing import Sequence
 from .errors import GmsfricError
 
 COMMAND_MODULES = [
+    "gmsfric.identify.cli", "gmsfric.identify.paper",
     "gmsfric.demo",
     "gmsfric.loop.cli",
     "gmsfric.glitch.cli",
