@@ -9,8 +9,10 @@
 //! - [`plant`]: `a / (s^2 + b s + c)` with an input delay, exact ZOH with fractional delays.
 //! - [`control`]: PID and the EMPS cascade controller.
 //! - [`closed_loop`]: the closed-loop axis with friction in the loop.
+//! - [`batch`]: many closed-loop runs at once on all cores (sweeps, Monte Carlo), stacked outputs.
 //! - [`reference`]: reference problems (the paper's axis, EMPS) shared by tests and benchmarks.
 
+pub mod batch;
 pub mod closed_loop;
 pub mod control;
 pub mod error;
