@@ -263,6 +263,40 @@ def find_plateaus(
             p.dropped = "stick-slip or unsteady velocity"
             out.rejected.append(p)
             continue
+        if quantum > 0:
+            # stick-slip shows as standstills: encoder counts stop changing for much longer than
+            # the quantum / speed expected on a steady plateau
+            ch = np.flatnonzero(np.diff(x[a2:b2]) != 0)
+            if ch.size > 2:
+                gaps = np.diff(t[a2:b2][ch])
+                expected = max(quantum / abs(vel), dt)
+                stuck = float(gaps[gaps > 4.0 * expected].sum()) / max(float(t[b2 - 1] - t[a2]), dt)
+                if stuck > 0.2:
+                    p.dropped = f"stick-slip ({stuck:.0%} of the plateau at standstill)"
+                    out.rejected.append(p)
+                    continue
+        # velocity oscillation (stick-slip without full stops, limit cycles): local velocity over
+        # ~8 resolutions scatters far more than quantisation explains
+        hl = max(1, int(np.ceil(8.0 * resolution / (abs(vel) * dt) / 2)))
+        if b2 - a2 > 4 * hl:
+            xs_ = x[a2:b2]
+            v_loc = (xs_[2 * hl :] - xs_[: -2 * hl]) / (2 * hl * dt)
+            cv = float(np.std(v_loc)) / abs(vel)
+            expected_cv = resolution / (2 * hl * dt * abs(vel))
+            # short-window roughness of the position about its local straight line
+            L = max(10, 4 * hl)
+            nw = (b2 - a2) // L
+            rough = 0.0
+            if nw >= 3:
+                tw = np.arange(L) - (L - 1) / 2
+                segs = xs_[: nw * L].reshape(nw, L)
+                segs = segs - segs.mean(axis=1, keepdims=True)
+                slope = (segs @ tw) / (tw @ tw)
+                rough = float(np.median(np.sqrt(np.mean((segs - slope[:, None] * tw) ** 2, axis=1))))
+            if cv > stick_slip_tol + 2.0 * expected_cv or rough > 3.0 * resolution / np.sqrt(12.0) + 1e-300:
+                p.dropped = f"velocity oscillation (stick-slip), CV {cv:.2f}"
+                out.rejected.append(p)
+                continue
         if abs(x[b2 - 1] - x[a2]) < min_travel:
             p.dropped = "too short a travel (creep)"
             out.rejected.append(p)
