@@ -198,3 +198,51 @@ pub fn simulate_batch_stacked(jobs: &[Job<'_>], opts: &BatchOptions<'_>) -> std:
     }
     Ok(out)
 }
+
+/// Friction-only simulation of many models along position trajectories sampled at the shared
+/// times `t`, in parallel: run `i` uses `models[i]` on `positions[i]` (`positions` may also hold a
+/// single trajectory shared by every model). Returns the forces stacked `n_runs x t.len()`.
+pub fn simulate_position_batch(
+    models: &[FrictionModel],
+    t: &[f64],
+    positions: &[&[f64]],
+    opts: &BatchOptions<'_>,
+) -> std::result::Result<Vec<f64>, BatchError> {
+    let n = t.len();
+    if positions.len() != 1 && positions.len() != models.len() {
+        return Err(BatchError {
+            run: 0,
+            error: CoreError::LengthMismatch { name: "position rows", other: "models", expected: models.len(), got: positions.len() },
+        });
+    }
+    let mut out = vec![0.0; models.len() * n];
+    if models.is_empty() || n == 0 {
+        crate::error::check::increasing("t", t, 2).map_err(|error| BatchError { run: 0, error })?;
+        return Ok(out);
+    }
+    let results: Vec<Result<()>> = in_pool(opts.threads, || {
+        out.par_chunks_mut(n)
+            .zip(models.par_iter())
+            .enumerate()
+            .map(|(i, (row, model))| {
+                if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                    return Err(cancelled());
+                }
+                let x = positions[if positions.len() == 1 { 0 } else { i }];
+                let mut m = model.clone();
+                m.reset();
+                let f = crate::with_friction!(&mut m, e => crate::friction::simulate_position(e, t, x));
+                if let Some(p) = opts.progress {
+                    p.fetch_add(1, Ordering::Relaxed);
+                }
+                row.copy_from_slice(&f?);
+                Ok(())
+            })
+            .collect()
+    })
+    .map_err(|error| BatchError { run: 0, error })?;
+    match results.into_iter().enumerate().find(|(_, r)| r.is_err()) {
+        Some((run, Err(error))) => Err(BatchError { run, error }),
+        _ => Ok(out),
+    }
+}

@@ -121,3 +121,25 @@ fn cancel_skips_runs_and_zero_threads_is_rejected() {
     let out = simulate_batch_stacked(&[], &BatchOptions::default()).unwrap();
     assert_eq!((out.n_runs, out.position.len()), (0, 0));
 }
+
+#[test]
+fn friction_batch_equals_single_runs() {
+    use gms_core::batch::simulate_position_batch;
+    let t: Vec<f64> = (0..2000).map(|k| k as f64 * DT).collect();
+    let x: Vec<f64> = t.iter().map(|&s| 1e-5 * (2.0 * std::f64::consts::PI * 3.0 * s).sin()).collect();
+    let models = vec![
+        FrictionModel::Gms(reference::paper_gms()),
+        FrictionModel::Gms(reference::gms_with_blocks(8)),
+        FrictionModel::Static(gms_core::StaticElement::new(reference::paper_static())),
+    ];
+    let out = simulate_position_batch(&models, &t, &[&x], &BatchOptions { threads: Some(2), ..Default::default() }).unwrap();
+    for (i, m) in models.iter().enumerate() {
+        let mut m = m.clone();
+        let single = gms_core::with_friction!(&mut m, e => gms_core::simulate_position(e, &t, &x)).unwrap();
+        assert_eq!(&out[i * t.len()..(i + 1) * t.len()], &single[..], "model {i}");
+    }
+    let mut bad = x.clone();
+    bad[5] = f64::INFINITY;
+    let err = simulate_position_batch(&models, &t, &[&x, &x, &bad], &BatchOptions::default()).unwrap_err();
+    assert_eq!(err.run, 2);
+}

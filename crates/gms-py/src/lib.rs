@@ -3,6 +3,7 @@
 //! It only extracts inputs (numpy arrays are borrowed, not copied), calls the core with the GIL
 //! released, and converts results (vectors move into numpy arrays without a copy). No physics.
 
+mod batch;
 mod errors;
 
 use errors::IntoPy;
@@ -211,3 +212,5 @@ fn _gmsfric(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
+    m.add_function(wrap_pyfunction!(batch::simulate_closed_loop_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::simulate_friction_batch, m)?)?;
