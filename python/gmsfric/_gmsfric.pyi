@@ -1,6 +1,6 @@
 """Stubs of the compiled core binding (``crates/gms-py``)."""
 
-from typing import Optional, final
+from typing import Callable, Optional, final
 
 import numpy as np
 from numpy.typing import NDArray
@@ -13,6 +13,8 @@ __all__ = [
     "SimulationError",
     "discretize_plant",
     "simulate_closed_loop",
+    "simulate_closed_loop_batch",
+    "simulate_friction_batch",
     "simulate_open_loop",
     "static_map_force",
     "__version__",
@@ -73,3 +75,30 @@ def simulate_open_loop(
 def discretize_plant(
     plant_params: tuple[float, float, float, float, float], dt: float
 ) -> tuple[list[float], list[float], list[float], list[float], int]: ...
+def simulate_closed_loop_batch(
+    plant_params: list[tuple[float, float, float, float, float]],
+    frictions: list[Optional[FrictionSpec]],
+    controllers: list[ControllerSpec],
+    reference: NDArray[np.float64],
+    dt: float,
+    feedforward: Optional[NDArray[np.float64]] = None,
+    input_disturbance: Optional[NDArray[np.float64]] = None,
+    load_force: Optional[NDArray[np.float64]] = None,
+    measurement_noise: Optional[NDArray[np.float64]] = None,
+    quantization: float = 0.0,
+    drive_min: float = ...,
+    drive_max: float = ...,
+    initial_position: Optional[float] = None,
+    initial_velocity: float = 0.0,
+    threads: Optional[int] = None,
+    progress: Optional[Callable[[int, int], object]] = None,
+    poll_interval: float = 0.2,
+) -> dict[str, NDArray[np.float64]]: ...
+def simulate_friction_batch(
+    models: list[FrictionSpec],
+    t: NDArray[np.float64],
+    position: NDArray[np.float64],
+    threads: Optional[int] = None,
+    progress: Optional[Callable[[int, int], object]] = None,
+    poll_interval: float = 0.2,
+) -> NDArray[np.float64]: ...
