@@ -240,7 +240,11 @@ class LinearModel:
         parts = {"inertia": "M qdd", "viscous": "Fv qd", "coulomb": "Fc sign(qd)", "offset": "offset"}
         body = " + ".join(parts.get(t.name, t.name) for t in self.terms)
         if self.delay:
-            body += f", force delayed {self.delay * 1e3:.2f} ms"
+            hold = self.extras.get("sampling_hold_s")
+            if hold is not None and abs(self.delay - hold) < 1e-12:
+                body += f", force aligned half a sample later ({hold * 1e3:.3g} ms, sampling hold)"
+            else:
+                body += f", force delayed {self.delay * 1e3:.3g} ms"
         return "f = " + body
 
 

@@ -56,6 +56,10 @@ class LoopConfig:
         Smallest relative decrease of the held-out error that counts (0.01 = 1 %).
     max_effects : int
         Upper bound on the number of added effects.
+    sampling_hold : bool
+        Before the catalogue, try aligning the force half a sample later (a command held over
+        each sample acts, on average, half a sample after its time stamp).  Kept only when the
+        held-out data confirm it; reported under ``alignment``, not as an effect.
     seed : int
         Seed of the residual tests' surrogates.
     progress : bool
@@ -71,6 +75,7 @@ class LoopConfig:
     t_threshold: float = 3.0
     min_gain: float = 0.01
     max_effects: int = 6
+    sampling_hold: bool = True
     seed: int = 0
     progress: bool = True
 
@@ -159,6 +164,7 @@ class LoopResult:
     unexplained: list[dict[str, Any]]
     findings: dict[str, list[Finding]]
     closed_loop: dict[str, Any] = field(default_factory=dict)
+    alignment: dict[str, Any] = field(default_factory=dict)
 
     @property
     def effects(self) -> list[str]:
@@ -175,6 +181,7 @@ class LoopResult:
                 "validation_error_pct": round(self.baseline_errors[1], 4),
                 "parameters": _round_params(self.baseline.params()),
             },
+            "alignment": self.alignment,
             "steps": [s.as_dict() for s in self.steps],
             "final": {
                 "effects": self.effects,
@@ -233,12 +240,20 @@ def _solve(A: Array, b: Array) -> Array:
 
 
 def _chunk_t(r0: Array, r1: Array, chunk: int) -> float:
-    m = r0.size // chunk
-    if m < 3:
-        d = r0**2 - r1**2
-        return float(d.mean() / (d.std(ddof=1) / np.sqrt(d.size) + 1e-300))
-    d = np.array([(r0[i * chunk : (i + 1) * chunk] ** 2).sum() - (r1[i * chunk : (i + 1) * chunk] ** 2).sum() for i in range(m)])
-    return float(d.mean() / (d.std(ddof=1) / np.sqrt(m) + 1e-300))
+    """Paired t statistic of ``log(SSE_before / SSE_after)`` over contiguous chunks.
+
+    The log ratio is scale-free, so a few chunks with large forces (reversals, pulses) do not
+    swamp the others; under "no improvement" its mean is zero (or below, for overfitted
+    effects)."""
+    m = max(2, r0.size // chunk)
+    c = r0.size // m
+    a = (r0[: m * c] ** 2).reshape(m, c).sum(axis=1)
+    b = (r1[: m * c] ** 2).reshape(m, c).sum(axis=1)
+    d = np.log((a + 1e-300) / (b + 1e-300))
+    sd = d.std(ddof=1)
+    if sd == 0:
+        return float(np.sign(d.mean()) * np.inf) if d.mean() else 0.0
+    return float(d.mean() / (sd / np.sqrt(m)))
 
 
 def _evaluate(split: Split, m: LinearModel, cfg: LoopConfig) -> tuple[float, float]:
@@ -275,13 +290,38 @@ def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | No
     split = make_split(est, val, cfg)
     S, er = split.est, split.est_rows
     n_est = int(er.sum())
-    chunk = max(10, int(round(1.0 / (S.dt * S.dec))))  # ~1 s of rows per chunk
-    chunk = min(chunk, max(10, int(split.val_rows.sum()) // 12))
+    chunk = max(10, int(round(0.25 / (S.dt * S.dec))))  # ~0.25 s of rows per chunk
+    chunk = min(chunk, max(10, int(split.val_rows.sum()) // 24))
 
     base = LinearModel([BASE_TERMS[b] for b in cfg.baseline]).fit(S, er)
     base_err = split.errors(base)
     current = base
     cur_err = base_err
+    alignment: dict[str, Any] = {"sampling_hold_s": 0.5 * S.dt, "applied": False, "tests": []} if cfg.sampling_hold else {}
+
+    def try_hold(cur: LinearModel, cur_e: tuple[float, float], rnd: int) -> tuple[LinearModel, tuple[float, float]]:
+        # A force recorded as a command held over [t_k, t_k+1) acts, on average, half a sample
+        # after its time stamp: a property of the sampling, not of the axis (nothing fitted).
+        # Tested again after every added effect: a large effect can hide it at first.
+        if not cfg.sampling_hold or alignment["applied"] or cur.delay:
+            return cur, cur_e
+        held = cur.copy()
+        held.theta = None
+        held.delay = 0.5 * S.dt
+        held.fit(S, er)
+        e_h = split.errors(held)
+        r0 = (split.val.y - cur.predict(split.val))[split.val_rows]
+        r1 = (split.val.y - held.predict(split.val))[split.val_rows]
+        t_h = _chunk_t(r0, r1, chunk)
+        ok_h = t_h >= cfg.t_threshold and 1.0 - e_h[1] / cur_e[1] >= cfg.min_gain
+        alignment["tests"].append({"after_round": rnd, "t_heldout": round(t_h, 2), "estimation_error_pct": round(e_h[0], 4), "validation_error_pct": round(e_h[1], 4), "applied": bool(ok_h)})
+        if ok_h:
+            alignment["applied"] = True
+            held.extras["sampling_hold_s"] = 0.5 * S.dt
+            return held, e_h
+        return cur, cur_e
+
+    current, cur_err = try_hold(current, cur_err, 0)
     steps: list[Step] = []
     findings: dict[str, list[Finding]] = {}
     rnd = 0
@@ -358,6 +398,7 @@ def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | No
             if accepted is None:
                 break
             current, cur_err = accepted
+            current, cur_err = try_hold(current, cur_err, rnd)
     y_hat = current.predict(S)
     r = S.y - y_hat
     final_f = _analyse_rows(S, er, r, y_hat, cfg.seed)
@@ -377,7 +418,7 @@ def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | No
             if f.significant:
                 unexplained.append({"variable": f.variable, "run": "validation", "z": round(f.z, 1), "statistic": round(f.statistic, 5),
                                     "candidates_tried": [e for e in f.suggests if e in names], "note": "structure in the held-out run's residual", **{k: v for k, v in f.detail.items()}})
-    return LoopResult(split, base, base_err, steps, current, cur_err, unexplained, findings)
+    return LoopResult(split, base, base_err, steps, current, cur_err, unexplained, findings, alignment=alignment)
 
 
 def _analyse_rows(S: Signals, rows: Array, r: Array, y_hat: Array, seed: int) -> list[Finding]:
