@@ -164,7 +164,8 @@ def replay_paper(settings: ReplaySettings = ReplaySettings(), *, progress: bool 
     # Table 2: small and large sinusoids at one frequency (Section 3.2, Figs. 6-8)
     prig = rig.with_(encoder=s.presliding_resolution, force_noise=s.presliding_force_noise)
     sine = prig.sinusoid_test(s.sine_amplitudes, s.sine_frequency, cycles=s.sine_cycles, seed=int(rng_seeds[1]))
-    ps = fit_presliding(sine["t"], sine["position"], sine["force"], n_blocks=s.n_blocks, stribeck=st, sigma=sm.value("sigma"), c=1.0 / st.vs, progress=progress)
+    st_se = {k: sm.stderr(k) for k in ("fc", "fs", "vs", "delta")}
+    ps = fit_presliding(sine["t"], sine["position"], sine["force"], n_blocks=s.n_blocks, stribeck=st, stribeck_stderr=st_se, sigma=sm.value("sigma"), progress=progress)
 
     # Eq. 1: band-limited noise, H1, NLS (Section 2, Fig. 3)
     frig = rig.with_(dt=s.frf_dt)

@@ -23,7 +23,7 @@ Blocks are reported in order of break displacement ``d_i = w_i / k_i`` (eq. 6's 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -280,6 +280,7 @@ def fit_presliding(
     c: float | None = None,
     sigma: float = 0.0,
     slip_law: str = "time",
+    stribeck_stderr: Mapping[str, float] | None = None,
     refine: bool = True,
     n_bins: int = 80,
     resolution: float | None = None,
@@ -308,6 +309,11 @@ def fit_presliding(
         Viscous coefficient used in the refinement.
     slip_law : {"time", "displacement"}
         GMS slip law of the refinement.
+    stribeck_stderr : mapping, optional
+        Standard errors of ``stribeck``'s ``fc, fs, vs, delta`` (e.g. from the static-map fit).
+        Without it the standard errors are conditional on ``stribeck``; with it, the shift of the
+        refined blocks when each Stribeck parameter moves by one standard error is added to
+        their covariance (first-order propagation).
     refine : bool
         Refine by fitting the simulated hysteresis to the force (else stop at the virgin fit).
     n_bins : int
@@ -355,7 +361,9 @@ def fit_presliding(
     total = float(w.sum())
     if c is None:
         c = 1.0 / stribeck.vs if stribeck is not None else 1e3 * total / max(float(np.median(np.diff(t))) * 1e3, 1e-300)
+    c_given = c is not None
     c = positive("c", c)
+    level = {"stribeck": stribeck}
     if refine:
         cut = int(vc.turning_points[0])
         mask = np.zeros(t.size, dtype=bool)
@@ -372,7 +380,9 @@ def fit_presliding(
 
             def resid(q: NDArray[np.float64]) -> NDArray[np.float64]:
                 kk, ww = np.exp(q[:nb]), np.exp(q[nb:])
-                sim = simulate_friction(_make_gms(kk, ww, c, stribeck, sigma, slip_law), t, xs)
+                st_now = level["stribeck"]
+                c_now = c if c_given or st_now is None else 1.0 / st_now.vs
+                sim = simulate_friction(_make_gms(kk, ww, c_now, st_now, sigma, slip_law), t, xs)
                 prog.update()
                 return (sim[mask] - F[mask]) * weight[mask]
 
@@ -395,9 +405,27 @@ def fit_presliding(
             sigma_f = max(sigma_f, 1e-12 * scale_f)
             weight[:] = 1.0 / np.sqrt(sigma_f**2 + (k_loc * sigma_x) ** 2)
             r = least_squares(resid, r.x, bounds=bounds, method="trf", x_scale="jac", diff_step=1e-4, max_nfev=100 * (2 * nb + 1))
-        kq, wq = np.exp(r.x[:nb]), np.exp(r.x[nb:])
-        inflation = autocorrelation_inflation(r.fun)
-        cov = covariance_from_jacobian(r.jac, r.fun) * inflation
+            kq, wq = np.exp(r.x[:nb]), np.exp(r.x[nb:])
+            inflation = autocorrelation_inflation(r.fun)
+            cov = covariance_from_jacobian(r.jac, r.fun) * inflation
+            if stribeck is not None and stribeck_stderr:
+                propagated = np.zeros_like(cov)
+                for name in ("fc", "fs", "vs", "delta"):
+                    se_p = float(stribeck_stderr.get(name, 0.0) or 0.0)
+                    if not np.isfinite(se_p) or se_p <= 0:
+                        continue
+                    vals = {"fc": stribeck.fc, "fs": stribeck.fs, "vs": stribeck.vs, "delta": stribeck.delta}
+                    vals[name] = vals[name] + se_p
+                    try:
+                        level["stribeck"] = Stribeck(**vals)
+                    except InvalidInputError:
+                        continue
+                    rp = least_squares(resid, r.x, bounds=bounds, method="trf", x_scale="jac", diff_step=1e-4, max_nfev=10 * (2 * nb + 1))
+                    shift = rp.x - r.x
+                    propagated += np.outer(shift, shift)
+                level["stribeck"] = stribeck
+                cov = cov + propagated
+                info["stribeck_propagated"] = True
         info["stderr_inflation"] = inflation
         info["force_noise"] = sigma_f
         se = np.sqrt(np.clip(np.diag(cov), 0, np.inf))
