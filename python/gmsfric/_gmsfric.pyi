@@ -49,6 +49,10 @@ class ControllerSpec:
     def pid(kp: float, ki: float, kd: float, tf: float, u_min: float, u_max: float, dt: float) -> ControllerSpec: ...
     @staticmethod
     def cascade(kp: float, kv: float, u_min: float, u_max: float, dt: float) -> ControllerSpec: ...
+    @staticmethod
+    def pid_dob(
+        kp: float, ki: float, kd: float, tf: float, u_min: float, u_max: float, dt: float, a: float, b: float, c: float, delay: float, dob_cutoff_hz: float
+    ) -> ControllerSpec: ...
 
 def static_map_force(
     fc: float, fs: float, vs: float, delta: float, sigma: float, v: NDArray[np.float64], offset: float = 0.0, v_linear: float = 0.0

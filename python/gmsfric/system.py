@@ -149,7 +149,44 @@ class Cascade:
         return _gmsfric.ControllerSpec.cascade(self.kp, self.kv, float(self.u_min), float(self.u_max), dt)
 
 
-Controller = Union[PID, Cascade]
+@dataclass(frozen=True)
+class PIDDOB:
+    """:class:`PID` plus a disturbance observer (DOB) on the drive input.
+
+    The observer estimates the input-equivalent disturbance (e.g. friction / force_gain) as
+    ``d_hat = Q(s) [exp(-s delay) u - P_n(s)^-1 y]`` with the nominal plant
+    ``P_n = a / (s^2 + b s + c)`` and input delay of ``nominal``, and the low-pass
+    ``Q(s) = 1 / (tau s + 1)^2``, ``tau = 1 / (2 pi dob_cutoff_hz)``; the controller outputs
+    ``clamp(u_pid + d_hat)``.  The observer uses the controller's own output: a ``feedforward``
+    passed to :func:`simulate_closed_loop` is seen (and cancelled) as a disturbance.
+
+    Parameters
+    ----------
+    pid : PID
+        Gains and output limits.
+    nominal : Plant
+        Nominal plant of the observer (a, b, c, delay; force_gain unused).
+    dob_cutoff_hz : float
+        Q-filter cutoff (Hz), > 0 and below the Nyquist frequency of the step.
+    """
+
+    pid: PID
+    nominal: Plant
+    dob_cutoff_hz: float = 20.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.pid, PID):
+            raise InvalidInputError(f"`pid` must be a PID, got {type(self.pid).__name__}")
+        if not isinstance(self.nominal, Plant):
+            raise InvalidInputError(f"`nominal` must be a Plant, got {type(self.nominal).__name__}")
+        object.__setattr__(self, "dob_cutoff_hz", positive("dob_cutoff_hz", self.dob_cutoff_hz))
+
+    def _native(self, dt: float) -> _gmsfric.ControllerSpec:
+        p, n = self.pid, self.nominal
+        return _gmsfric.ControllerSpec.pid_dob(p.kp, p.ki, p.kd, p.tf, float(p.u_min), float(p.u_max), dt, n.a, n.b, n.c, n.delay, self.dob_cutoff_hz)
+
+
+Controller = Union[PID, Cascade, PIDDOB]
 
 
 @dataclass(frozen=True)
@@ -231,7 +268,7 @@ def simulate_closed_loop(
     plant : Plant
     friction : friction model or None
         ``None`` simulates the frictionless axis.
-    controller : PID or Cascade
+    controller : PID, Cascade or PIDDOB
     reference : array_like
         Reference position (m) per sample.
     dt : float
@@ -255,8 +292,8 @@ def simulate_closed_loop(
     """
     if not isinstance(plant, Plant):
         raise InvalidInputError(f"`plant` must be a Plant, got {type(plant).__name__}")
-    if not isinstance(controller, (PID, Cascade)):
-        raise InvalidInputError(f"`controller` must be a PID or Cascade, got {type(controller).__name__}")
+    if not isinstance(controller, (PID, Cascade, PIDDOB)):
+        raise InvalidInputError(f"`controller` must be a PID, Cascade or PIDDOB, got {type(controller).__name__}")
     dt = positive("dt", dt)
     ref = as_array("reference", reference)
     n = ref.size

@@ -130,6 +130,15 @@ impl ControllerSpec {
     fn cascade(kp: f64, kv: f64, u_min: f64, u_max: f64, dt: f64) -> PyResult<Self> {
         Ok(Self { model: core::ControllerModel::Cascade(core::Cascade::new(kp, kv, u_min, u_max, dt).py()?) })
     }
+
+    /// PID plus a disturbance observer with the nominal plant `a / (s^2 + b s + c)`, input
+    /// `delay` and a Q-filter `1 / (tau s + 1)^2` of cutoff `dob_cutoff_hz`.
+    #[staticmethod]
+    #[allow(clippy::too_many_arguments)]
+    fn pid_dob(kp: f64, ki: f64, kd: f64, tf: f64, u_min: f64, u_max: f64, dt: f64, a: f64, b: f64, c: f64, delay: f64, dob_cutoff_hz: f64) -> PyResult<Self> {
+        let pid = core::Pid::new(kp, ki, kd, tf, u_min, u_max, dt).py()?;
+        Ok(Self { model: core::ControllerModel::PidDob(core::control::PidDob::new(pid, a, b, c, delay, dob_cutoff_hz).py()?) })
+    }
 }
 
 fn plant(p: (f64, f64, f64, f64, f64)) -> PyResult<core::Plant> {
@@ -209,8 +218,8 @@ fn _gmsfric(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate_closed_loop, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_open_loop, m)?)?;
     m.add_function(wrap_pyfunction!(discretize_plant, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::simulate_closed_loop_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::simulate_friction_batch, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
-    m.add_function(wrap_pyfunction!(batch::simulate_closed_loop_batch, m)?)?;
-    m.add_function(wrap_pyfunction!(batch::simulate_friction_batch, m)?)?;
