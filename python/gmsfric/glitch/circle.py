@@ -21,14 +21,15 @@ from .._validate import non_negative, positive
 from ..models import GMS, FrictionModel, StaticFriction
 from ..system import PID, Cascade, ClosedLoopResult, Plant
 from .compensation import _simulate_many
-from .scenario import MODELS, scenario_controller
+from .scenario import MODELS, PAPER_STATIC_V_LINEAR, STICTION, paper_static_map, scenario_controller
 
 QUADRANTS = (0, 90, 180, 270)
 
 
 @dataclass(frozen=True)
 class CircleResult:
-    """Circle runs keyed by model (``"none"``, ``"static"``, ``"gms"``).
+    """Circle runs keyed by model (``"none"``, ``"static"``, ``"gms"`` and, unless disabled,
+    ``"static_stiction"``).
 
     Attributes
     ----------
@@ -81,6 +82,8 @@ def run_circle(
     lead_in: float = 45.0,
     lead_out: float = 10.0,
     window_deg: float = 30.0,
+    static_v_linear: float | None = PAPER_STATIC_V_LINEAR,
+    stiction: bool = True,
 ) -> CircleResult:
     """Circle test without friction, with the static map and with GMS on both axes.
 
@@ -99,6 +102,11 @@ def run_circle(
         Degrees simulated before 0 deg and after 360 deg.
     window_deg : float
         Width (deg) after each quadrant crossing searched for the glitch.
+    static_v_linear : float or None
+        Linear-region threshold (m/s) of the ``"static"`` map, as in
+        :func:`~gmsfric.glitch.scenario.run_sinusoid` (default 1e-4, the Simulink reading).
+    stiction : bool
+        Also run the static map with true stiction as ``"static_stiction"``.
 
     Returns
     -------
@@ -109,7 +117,10 @@ def run_circle(
         return (v[0], v[1]) if isinstance(v, tuple) else (v, v)
 
     px, py = pair(presets.paper_plant() if plant is None else plant)
-    sx, sy = pair(presets.paper_static_friction() if static is None else static)
+    sx0, sy0 = pair(presets.paper_static_friction() if static is None else static)
+    sx, sy = paper_static_map(sx0, static_v_linear), paper_static_map(sy0, static_v_linear)  # type: ignore[arg-type]
+    kx, ky = paper_static_map(sx0, 0.0), paper_static_map(sy0, 0.0)  # type: ignore[arg-type]
+    models = MODELS + ((STICTION,) if stiction else ())
     gx, gy = pair(presets.paper_gms() if gms is None else gms)
     cx, cy = pair(scenario_controller() if controller is None else controller)
     radius = positive("radius", radius)
@@ -126,18 +137,18 @@ def run_circle(
     theta = w * t
     rx, ry = radius * np.cos(theta), radius * np.sin(theta)
     vx0, vy0 = -radius * w * np.sin(theta[0]), radius * w * np.cos(theta[0])
-    fr: dict[str, tuple[FrictionModel | None, FrictionModel | None]] = {"none": (None, None), "static": (sx, sy), "gms": (gx, gy)}  # type: ignore[dict-item]
+    fr: dict[str, tuple[FrictionModel | None, FrictionModel | None]] = {"none": (None, None), "static": (sx, sy), "gms": (gx, gy), STICTION: (kx, ky)}  # type: ignore[dict-item]
     jobs = []
-    for m in MODELS:
+    for m in models:
         jobs.append(dict(plant=px, friction=fr[m][0], controller=cx, reference=rx, dt=dt, initial_velocity=vx0))
         jobs.append(dict(plant=py, friction=fr[m][1], controller=cy, reference=ry, dt=dt, initial_velocity=vy0))
     res = _simulate_many(jobs)
-    xs = {m: res[2 * i] for i, m in enumerate(MODELS)}
-    ys = {m: res[2 * i + 1] for i, m in enumerate(MODELS)}
-    radial = {m: np.hypot(xs[m].position, ys[m].position) - radius for m in MODELS}
+    xs = {m: res[2 * i] for i, m in enumerate(models)}
+    ys = {m: res[2 * i + 1] for i, m in enumerate(models)}
+    radial = {m: np.hypot(xs[m].position, ys[m].position) - radius for m in models}
     glitch: dict[str, dict[int, float]] = {}
     win = np.deg2rad(window_deg)
-    for m in MODELS:
+    for m in models:
         g = radial[m] - radial["none"]
         q: dict[int, float] = {}
         for ang in QUADRANTS:

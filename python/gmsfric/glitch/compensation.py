@@ -8,6 +8,12 @@ The feedforward is the friction a model predicts along the reference, in drive u
 
 time-shifted by ``advance`` seconds (default: the plant's input delay, so the force arrives when
 the friction acts) and scaled by ``gain``.
+
+The static map of ``"static_feedforward"`` is the paper's map as the glitch scenario reads it
+(linear region below ``static_v_linear`` = 1e-4 m/s, the Simulink reading); the true-stiction
+map's feedforward (a sign switch of the full 2 Fc at the reference reversal) is the extra
+``"static_feedforward_stiction"``.  ``"dob"`` is no feedforward but a disturbance observer on the
+PID (:class:`gmsfric.system.PIDDOB`, nominal plant = the plant, Q-filter cutoff ``dob_cutoff_hz``).
 """
 
 from __future__ import annotations
@@ -23,11 +29,19 @@ from .. import presets
 from .._validate import as_array, finite, same_length
 from ..errors import InvalidInputError
 from ..models import GMS, FrictionModel, StaticFriction, simulate_friction
-from ..system import PID, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
+from ..system import PID, PIDDOB, Cascade, ClosedLoopResult, Controller, Plant, simulate_closed_loop
 from .metrics import GlitchReport, glitch_metrics
-from .scenario import DEFAULT_GAINS, scenario_controller, sinusoid_reference
+from .scenario import DEFAULT_GAINS, PAPER_STATIC_V_LINEAR, paper_static_map, scenario_controller, sinusoid_reference
 
+#: The issue's contract strategies (always run).
 STRATEGIES = ("none", "static_feedforward", "gms_feedforward")
+
+#: Extra strategies run by default by :func:`run_compensation`: feedforward from the true-stiction
+#: static map, and PID + disturbance observer (no feedforward).
+EXTRA_STRATEGIES = ("static_feedforward_stiction", "dob")
+
+#: Default Q-filter cutoff (Hz) of the disturbance observer.
+DOB_CUTOFF_HZ = 20.0
 
 
 def friction_feedforward(
@@ -118,19 +132,11 @@ class CompensationResult:
 
 def _simulate_many(jobs: Sequence[Mapping[str, Any]]) -> list[ClosedLoopResult]:
     """The single entry point every sweep goes through: a list of closed-loop jobs (keyword
-    arguments of :func:`gmsfric.simulate_closed_loop`) -> results, in order.  Uses the batch API
-    (``gmsfric.batch``) when it is available, else runs them one after the other."""
-    try:  # pragma: no cover - depends on issue 6's batch module
-        from .. import batch  # type: ignore[attr-defined]
+    arguments of :func:`gmsfric.simulate_closed_loop`) -> results, in order.
 
-        run = getattr(batch, "simulate_closed_loop_batch", None)
-    except ImportError:
-        run = None
-    if run is not None:  # pragma: no cover
-        try:
-            return list(run(list(jobs)))
-        except TypeError:
-            pass
+    Runs them one after the other for now: the Python batch API of issue 6 (``gmsfric.batch``)
+    does not exist yet.  When it lands, this function is the one place to route through it (the
+    jobs differ in controller, friction, feedforward and, for the circle, initial velocity)."""
     return [simulate_closed_loop(**job) for job in jobs]
 
 
@@ -148,6 +154,9 @@ def run_compensation(
     advance: float | None = None,
     ff_gain: float = 1.0,
     window: tuple[float, float] | None = None,
+    static_v_linear: float | None = PAPER_STATIC_V_LINEAR,
+    extras: Sequence[str] = EXTRA_STRATEGIES,
+    dob_cutoff_hz: float = DOB_CUTOFF_HZ,
 ) -> CompensationResult:
     """Simulate the sinusoid scenario on the true axis without compensation, with static-map and
     with GMS feedforward.
@@ -170,16 +179,32 @@ def run_compensation(
         Feedforward gain (1 = model force).
     window : (float, float), optional
         Metric window.
+    static_v_linear : float or None
+        Linear-region threshold (m/s) of the static map behind ``"static_feedforward"`` (default
+        1e-4 m/s, the scenario's Simulink reading; 0 = true stiction; None = ``static`` as given).
+    extras : sequence of str
+        Extra strategies from :data:`EXTRA_STRATEGIES` (``"dob"`` needs a PID controller).
+    dob_cutoff_hz : float
+        Q-filter cutoff of the disturbance observer (Hz).
 
     Returns
     -------
     CompensationResult
+        The baseline of every strategy is the frictionless run of ``controller`` (the DOB's
+        target: it is transparent without disturbance, after its start transient).
     """
     plant = presets.paper_plant() if plant is None else plant
-    static = presets.paper_static_friction() if static is None else static
+    stiction_map = paper_static_map(static, 0.0)
+    static = paper_static_map(static, static_v_linear)
     gms = presets.paper_gms() if gms is None else gms
     true_friction = gms if true_friction is None else true_friction
     controller = scenario_controller() if controller is None else controller
+    extras = tuple(extras)
+    for k in extras:
+        if k not in EXTRA_STRATEGIES:
+            raise InvalidInputError(f"`extras` must be among {EXTRA_STRATEGIES}, got {k!r}")
+    if "dob" in extras and not isinstance(controller, PID):
+        raise InvalidInputError(f"`extras` 'dob' needs a PID `controller`, got {type(controller).__name__}")
     adv = plant.delay if advance is None else finite("advance", advance)
     t, r, v0 = sinusoid_reference(amplitude, frequency, dt, periods)
     ffs: dict[str, NDArray[np.float64] | None] = {
@@ -187,12 +212,19 @@ def run_compensation(
         "static_feedforward": friction_feedforward(static, t, r, plant.force_gain, advance=adv, gain=ff_gain),
         "gms_feedforward": friction_feedforward(gms, t, r, plant.force_gain, advance=adv, gain=ff_gain),
     }
+    if "static_feedforward_stiction" in extras:
+        ffs["static_feedforward_stiction"] = friction_feedforward(stiction_map, t, r, plant.force_gain, advance=adv, gain=ff_gain)
+    controllers: dict[str, Controller] = {k: controller for k in ffs}
+    if "dob" in extras:
+        ffs["dob"] = None
+        controllers["dob"] = PIDDOB(controller, plant, dob_cutoff_hz)  # type: ignore[arg-type]
+    names = list(ffs)
     jobs: list[dict[str, Any]] = [dict(plant=plant, friction=None, controller=controller, reference=r, dt=dt, initial_velocity=v0)]
-    jobs += [dict(plant=plant, friction=true_friction, controller=controller, reference=r, dt=dt, initial_velocity=v0, feedforward=ffs[k]) for k in STRATEGIES]
+    jobs += [dict(plant=plant, friction=true_friction, controller=controllers[k], reference=r, dt=dt, initial_velocity=v0, feedforward=ffs[k]) for k in names]
     results = _simulate_many(jobs)
     base = results[0].error
-    runs = dict(zip(STRATEGIES, results[1:]))
-    metrics = {k: glitch_metrics(t, runs[k].error, r, baseline=base, window=window) for k in STRATEGIES}
+    runs = dict(zip(names, results[1:]))
+    metrics = {k: glitch_metrics(t, runs[k].error, r, baseline=base, window=window) for k in names}
     return CompensationResult(runs, ffs, base, metrics, plant.force_gain)
 
 
@@ -210,6 +242,8 @@ def compensation_sweep(
     tf: float = DEFAULT_GAINS["tf"],
     drive_limit: float = presets.PaperReading().drive_limit,
     window: tuple[float, float] | None = None,
+    static_v_linear: float | None = PAPER_STATIC_V_LINEAR,
+    strategies: Sequence[str] = STRATEGIES,
 ) -> list[dict[str, float | str]]:
     """Glitch height of every strategy over a grid of controller and feedforward gains, all runs
     submitted in one batch call.
@@ -218,67 +252,87 @@ def compensation_sweep(
     ----------
     grid : dict
         Values to combine (Cartesian product) for any of ``kp``, ``ki``, ``kd`` (controller),
-        ``ff_gain`` (feedforward multiplier) and ``advance`` (feedforward advance, s).  Missing
-        keys take the scenario defaults (gain 1, advance = plant delay).
-    plant, true_friction, static, gms, amplitude, frequency, dt, periods, tf, drive_limit, window
+        ``ff_gain`` (feedforward multiplier), ``advance`` (feedforward advance, s) and
+        ``dob_cutoff_hz`` (observer Q-filter cutoff, Hz; used by ``"dob"``).  Missing keys take the
+        scenario defaults (gain 1, advance = plant delay, cutoff :data:`DOB_CUTOFF_HZ`).
+    plant, true_friction, static, gms, amplitude, frequency, dt, periods, tf, drive_limit, window, static_v_linear
         As in :func:`run_compensation`.
+    strategies : sequence of str
+        Among :data:`STRATEGIES` and :data:`EXTRA_STRATEGIES`; ``"none"`` is always run.
 
     Returns
     -------
     list of dict
         One row per grid point and strategy: the grid values, ``strategy``, ``peak_error_m`` (glitch
         height against the linear error), ``raw_peak_error_m``, ``duration_s``, ``area_m_s`` and ``reduction_percent`` (against the
-        uncompensated run at the same controller gains).
+        uncompensated run at the same controller gains).  Identical runs (e.g. ``"none"`` at every
+        ``ff_gain``) are simulated once.
     """
-    allowed = ("kp", "ki", "kd", "ff_gain", "advance")
+    allowed = ("kp", "ki", "kd", "ff_gain", "advance", "dob_cutoff_hz")
     if not isinstance(grid, Mapping):
         raise InvalidInputError(f"`grid` must be a dict of parameter -> values, got {type(grid).__name__}")
     for k in grid:
         if k not in allowed:
             raise InvalidInputError(f"`grid` key {k!r} is unknown; use {allowed}")
+    names = ["none"] + [s for s in dict.fromkeys(strategies) if s != "none"]
+    for s in names:
+        if s not in STRATEGIES + EXTRA_STRATEGIES:
+            raise InvalidInputError(f"`strategies` must be among {STRATEGIES + EXTRA_STRATEGIES}, got {s!r}")
     plant = presets.paper_plant() if plant is None else plant
-    static = presets.paper_static_friction() if static is None else static
+    stiction_map = paper_static_map(static, 0.0)
+    static = paper_static_map(static, static_v_linear)
     gms = presets.paper_gms() if gms is None else gms
     true_friction = gms if true_friction is None else true_friction
-    defaults = {"kp": DEFAULT_GAINS["kp"], "ki": DEFAULT_GAINS["ki"], "kd": DEFAULT_GAINS["kd"], "ff_gain": 1.0, "advance": plant.delay}
+    defaults = {"kp": DEFAULT_GAINS["kp"], "ki": DEFAULT_GAINS["ki"], "kd": DEFAULT_GAINS["kd"], "ff_gain": 1.0, "advance": plant.delay,
+                "dob_cutoff_hz": DOB_CUTOFF_HZ}
     axes = {k: [finite(f"grid[{k!r}]", v) for v in as_array(f"grid[{k!r}]", list(grid.get(k, [defaults[k]])))] for k in allowed}
     t, r, v0 = sinusoid_reference(amplitude, frequency, dt, periods)
+    ff_models: dict[str, FrictionModel] = {"static_feedforward": static, "gms_feedforward": gms, "static_feedforward_stiction": stiction_map}
     ff_cache: dict[tuple[str, float, float], NDArray[np.float64]] = {}
 
     def ff(name: str, g: float, adv: float) -> NDArray[np.float64]:
         key = (name, g, adv)
         if key not in ff_cache:
-            ff_cache[key] = friction_feedforward(static if name == "static_feedforward" else gms, t, r, plant.force_gain, advance=adv, gain=g)
+            ff_cache[key] = friction_feedforward(ff_models[name], t, r, plant.force_gain, advance=adv, gain=g)
         return ff_cache[key]
 
     points = [dict(zip(allowed, combo)) for combo in itertools.product(*(axes[k] for k in allowed))]
     jobs: list[dict[str, Any]] = []
-    index: list[tuple[int, str]] = []
-    linear_idx: dict[tuple[float, float, float], int] = {}
-    for i, p in enumerate(points):
-        ctrl = scenario_controller(p["kp"], p["ki"], p["kd"], tf, drive_limit)
+    job_of: dict[tuple[Any, ...], int] = {}
+
+    def submit(key: tuple[Any, ...], make: Any) -> int:
+        if key not in job_of:
+            job_of[key] = len(jobs)
+            jobs.append(make())
+        return job_of[key]
+
+    which: list[dict[str, int]] = []
+    for p in points:
         gains = (p["kp"], p["ki"], p["kd"])
-        if gains not in linear_idx:
-            linear_idx[gains] = len(jobs)
-            jobs.append(dict(plant=plant, friction=None, controller=ctrl, reference=r, dt=dt, initial_velocity=v0))
-            index.append((-1, "linear"))
-        for s in STRATEGIES:
-            jobs.append(dict(plant=plant, friction=true_friction, controller=ctrl, reference=r, dt=dt, initial_velocity=v0,
-                             feedforward=None if s == "none" else ff(s, p["ff_gain"], p["advance"])))
-            index.append((i, s))
+        ctrl = scenario_controller(p["kp"], p["ki"], p["kd"], tf, drive_limit)
+        idx = {"linear": submit(("linear", gains), lambda: dict(plant=plant, friction=None, controller=ctrl, reference=r, dt=dt, initial_velocity=v0))}
+        for s in names:
+            if s == "none":
+                key: tuple[Any, ...] = (s, gains)
+                make = lambda: dict(plant=plant, friction=true_friction, controller=ctrl, reference=r, dt=dt, initial_velocity=v0)  # noqa: E731
+            elif s == "dob":
+                key = (s, gains, p["dob_cutoff_hz"])
+                make = lambda: dict(plant=plant, friction=true_friction, controller=PIDDOB(ctrl, plant, p["dob_cutoff_hz"]), reference=r, dt=dt,  # noqa: E731
+                                    initial_velocity=v0)
+            else:
+                key = (s, gains, p["ff_gain"], p["advance"])
+                make = lambda: dict(plant=plant, friction=true_friction, controller=ctrl, reference=r, dt=dt, initial_velocity=v0,  # noqa: E731
+                                    feedforward=ff(s, p["ff_gain"], p["advance"]))
+            idx[s] = submit(key, make)
+        which.append(idx)
     results = _simulate_many(jobs)
     rows: list[dict[str, float | str]] = []
-    by_point: dict[int, dict[str, GlitchReport]] = {}
-    for (i, s), res in zip(index, results):
-        if i < 0:
-            continue
-        p = points[i]
-        base = results[linear_idx[(p["kp"], p["ki"], p["kd"])]].error
-        by_point.setdefault(i, {})[s] = glitch_metrics(t, res.error, r, baseline=base, window=window)
-    for i, p in enumerate(points):
-        h0 = by_point[i]["none"].height
-        for s in STRATEGIES:
-            m = by_point[i][s]
+    for p, idx in zip(points, which):
+        base = results[idx["linear"]].error
+        ms = {s: glitch_metrics(t, results[idx[s]].error, r, baseline=base, window=window) for s in names}
+        h0 = ms["none"].height
+        for s in names:
+            m = ms[s]
             row: dict[str, float | str] = dict(p)
             row.update(strategy=s, peak_error_m=m.height, raw_peak_error_m=m.raw_peak_error, duration_s=m.duration, area_m_s=m.area,
                        reduction_percent=(100.0 * (1.0 - m.height / h0)) if h0 > 0 else float("nan"))
@@ -286,4 +340,4 @@ def compensation_sweep(
     return rows
 
 
-__all__ = ["STRATEGIES", "CompensationResult", "friction_feedforward", "run_compensation", "compensation_sweep"]
+__all__ = ["STRATEGIES", "EXTRA_STRATEGIES", "DOB_CUTOFF_HZ", "CompensationResult", "friction_feedforward", "run_compensation", "compensation_sweep"]

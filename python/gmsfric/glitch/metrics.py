@@ -188,8 +188,9 @@ def glitch_metrics(
         Frictionless (linear) tracking error of the same loop (m); ``g = error - baseline``.
         Without it ``g`` is the error minus its value at the reversal instant.
     window : (float, float), optional
-        ``(pre, post)`` seconds around each reversal.  Default: ``pre = 0.01 P``,
-        ``post = 0.25 P`` with ``P`` the shortest time between reversals (or the record length).
+        ``(pre, post)`` seconds around each reversal.  Default: ``pre = 0.1 P``,
+        ``post = 0.25 P`` with ``P`` the shortest time between reversals (or the record length);
+        ``pre`` covers the friction change a linear-region static map starts before the reversal.
     fraction : float
         Level, relative to the height, above which ``|g|`` counts towards the duration (0..1).
     reversals : array_like, optional
@@ -219,7 +220,7 @@ def glitch_metrics(
         dirs = np.array([int(np.sign(np.interp(tr + 1e-9, t_arr, v)) or 1) for tr in times], dtype=np.int64)
     if window is None:
         span = np.min(np.diff(times)) if times.size > 1 else t_arr[-1] - t_arr[0]
-        pre, post = 0.01 * span, 0.25 * span
+        pre, post = 0.1 * span, 0.25 * span
     else:
         try:
             pre, post = (float(w) for w in window)

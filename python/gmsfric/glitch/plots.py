@@ -15,13 +15,15 @@ if TYPE_CHECKING:  # pragma: no cover
     from .compensation import CompensationResult
     from .scenario import ScenarioResult
 
-_LABELS = {"none": "without friction", "static": "static map", "gms": "GMS",
-           "static_feedforward": "static-map feedforward", "gms_feedforward": "GMS feedforward"}
+_LABELS = {"none": "without friction", "static": "static map (Simulink linear region)", "gms": "GMS",
+           "static_stiction": "static map, true stiction",
+           "static_feedforward": "static-map feedforward", "gms_feedforward": "GMS feedforward",
+           "static_feedforward_stiction": "stiction-map feedforward", "dob": "PID + disturbance observer"}
 
 
-def plot_tracking_errors(result: "ScenarioResult", *, zoom: float | None = 3.0) -> "Figure":
+def plot_tracking_errors(result: "ScenarioResult", *, zoom: float | None = 4.0) -> "Figure":
     """Fig. 14 equivalent: tracking error of each model over the run (top) and the glitch
-    ``e - e_lin`` around the first reversal (bottom, ``zoom`` seconds after it)."""
+    ``e - e_lin`` around the first reversal (bottom, ``zoom`` seconds either side)."""
     fig, (ax0, ax1) = new_figure(2, 1, figsize=(8.0, 6.5))
     first = None
     for name, run in result.runs.items():
@@ -34,7 +36,7 @@ def plot_tracking_errors(result: "ScenarioResult", *, zoom: float | None = 3.0) 
     ax0.set_title("Tracking errors without and with friction models (paper Fig. 14)")
     if first is not None and zoom:
         for name, run in result.runs.items():
-            m = (run.t >= first - 0.1 * zoom) & (run.t <= first + zoom)
+            m = (run.t >= first - zoom) & (run.t <= first + zoom)
             ax1.plot(run.t[m] - first, (run.error - result.baselines[name])[m] * 1e6, lw=1.0,
                      label=f"{_LABELS.get(name, name)}: {result.metrics[name].height * 1e6:.2f} µm")
         ax1.set_xlabel("time after reversal [s]")
@@ -66,16 +68,17 @@ def plot_circle_polar(result: "CircleResult", *, scale_um: float | None = None) 
     return fig
 
 
-def plot_compensation(result: "CompensationResult", *, zoom: float = 3.0) -> "Figure":
+def plot_compensation(result: "CompensationResult", *, zoom: float = 4.0) -> "Figure":
     """Before/after compensation: glitch ``e - e_lin`` at the first reversal for each strategy
     (top) and the feedforward signals (bottom)."""
     fig, (ax0, ax1) = new_figure(2, 1, figsize=(8.0, 6.5), sharex=True)
     ev = result.metrics["none"].events
     t0 = ev[0].time if ev else 0.0
     for name, run in result.runs.items():
-        m = (run.t >= t0 - 0.1 * zoom) & (run.t <= t0 + zoom)
+        m = (run.t >= t0 - zoom) & (run.t <= t0 + zoom)
+        label = "no compensation" if name == "none" else _LABELS.get(name, name)
         ax0.plot(run.t[m] - t0, (run.error - result.baseline)[m] * 1e6, lw=1.0,
-                 label=f"{_LABELS.get(name, name)}: {result.metrics[name].height * 1e6:.3f} µm")
+                 label=f"{label}: {result.metrics[name].height * 1e6:.3f} µm")
         ff = result.feedforward[name]
         if ff is not None:
             ax1.plot(run.t[m] - t0, ff[m], lw=1.0, label=_LABELS.get(name, name))

@@ -10,12 +10,19 @@ Choices (see ``docs/glitch.md``):
 * Controller: the paper gives none.  :func:`scenario_controller` is ``presets.paper_pid`` with all
   gains divided by 10 (same zeros, ~1 Hz bandwidth, kp = 5e4 V/m): slow enough that the friction
   glitches stand out of the linear tracking error, as they do in Fig. 14.
+* Static map: the paper simulated in MATLAB/Simulink, where a static friction map is a
+  single-valued function of velocity (Simscape's Translational Friction block is linear below its
+  "linear region velocity threshold", default 1e-4 m/s; a velocity lookup table is continuous
+  through zero): it cannot stick.  The "static" run therefore uses the paper's map with
+  ``v_linear = static_v_linear`` (default :data:`PAPER_STATIC_V_LINEAR` = 1e-4 m/s); the same map
+  with true stiction (``v_linear = 0``, the core's default) is run as ``"static_stiction"``.
 * The run starts at the sinusoid's zero crossing with the reference velocity, so there is no
   start transient; one period (100 s) contains two reversals.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -23,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import presets
-from .._validate import finite, positive
+from .._validate import finite, non_negative, positive
 from ..errors import InvalidInputError
 from ..models import GMS, FrictionModel, StaticFriction
 from ..system import PID, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
@@ -36,6 +43,25 @@ PAPER_TABLE3 = {"static": (19.85, 2.40, 176.80), "gms": (180.40, 168.40, 176.80)
 DEFAULT_GAINS = {"kp": 5.0e4, "ki": 2.5e5, "kd": 1.0e2, "tf": 5e-4}
 
 MODELS = ("none", "static", "gms")
+
+#: Extra run of the sinusoid / circle: the paper's static map with true stiction (v_linear = 0).
+STICTION = "static_stiction"
+
+#: Linear-region velocity threshold (m/s) of the paper's static map in the glitch scenario: the
+#: default of Simscape's Translational Friction block, the paper's MATLAB/Simulink reading.
+PAPER_STATIC_V_LINEAR = 1e-4
+
+
+def paper_static_map(static: StaticFriction | None = None, v_linear: float | None = PAPER_STATIC_V_LINEAR) -> StaticFriction:
+    """The static map as the glitch scenario simulates it: ``static`` (default
+    ``presets.paper_static_friction()``) with its linear-region threshold set to ``v_linear``
+    (m/s; ``0`` = true stiction, ``None`` = keep ``static.v_linear``)."""
+    static = presets.paper_static_friction() if static is None else static
+    if not isinstance(static, StaticFriction):
+        raise InvalidInputError(f"`static` must be a StaticFriction, got {type(static).__name__}")
+    if v_linear is None:
+        return static
+    return dataclasses.replace(static, v_linear=non_negative("static_v_linear", v_linear))
 
 
 def scenario_controller(
@@ -130,6 +156,8 @@ def run_sinusoid(
     plants: Mapping[str, Plant] | None = None,
     window: tuple[float, float] | None = None,
     drive_limit: float | None = None,
+    static_v_linear: float | None = PAPER_STATIC_V_LINEAR,
+    stiction: bool = True,
 ) -> ScenarioResult:
     """The paper's Fig. 14: tracking error without friction, with the static map and with GMS.
 
@@ -141,6 +169,12 @@ def run_sinusoid(
         Defaults ``presets.paper_static_friction()`` and ``presets.paper_gms()``.
     controller : PID or Cascade, optional
         Default :func:`scenario_controller`.
+    static_v_linear : float or None
+        Linear-region threshold (m/s) the ``"static"`` run gives the static map (default 1e-4 m/s,
+        Simscape's default: the paper's Simulink reading; 0 = true stiction); ``None`` keeps
+        ``static.v_linear`` as passed.
+    stiction : bool
+        Also run the static map with true stiction as ``"static_stiction"`` (default True).
     amplitude, frequency : float
         Sinusoid (m, Hz); the paper: 10 mm, 0.01 Hz.
     dt : float
@@ -148,7 +182,8 @@ def run_sinusoid(
     periods : float
         Length of the run in periods (reversals at 1/4 and 3/4 of each).
     plants : dict, optional
-        Per-model plants overriding ``plant`` (e.g. ``{"static": table3_plant("static")}``).
+        Per-model plants overriding ``plant`` (e.g. ``{"static": table3_plant("static")}``);
+        ``"static_stiction"`` defaults to the ``"static"`` entry.
     window : (float, float), optional
         Metric window, see :func:`~gmsfric.glitch.metrics.glitch_metrics`.
     drive_limit : float, optional
@@ -161,17 +196,21 @@ def run_sinusoid(
         ``metrics[m].raw_peak_error`` the raw tracking error at the reversals.
     """
     plant = presets.paper_plant() if plant is None else plant
-    static = presets.paper_static_friction() if static is None else static
+    stiction_map = paper_static_map(static, 0.0)
+    static = paper_static_map(static, static_v_linear)
     gms = presets.paper_gms() if gms is None else gms
     controller = scenario_controller() if controller is None else controller
     t, r, v0 = sinusoid_reference(amplitude, frequency, dt, periods)
-    frictions: dict[str, FrictionModel | None] = {"none": None, "static": static, "gms": gms}
+    models = MODELS + ((STICTION,) if stiction else ())
+    frictions: dict[str, FrictionModel | None] = {"none": None, "static": static, "gms": gms, STICTION: stiction_map}
     plants = dict(plants or {})
     for k in plants:
-        if k not in MODELS:
-            raise InvalidInputError(f"`plants` keys must be among {MODELS}, got {k!r}")
+        if k not in MODELS + (STICTION,):
+            raise InvalidInputError(f"`plants` keys must be among {MODELS + (STICTION,)}, got {k!r}")
+    if "static" in plants and STICTION not in plants:
+        plants[STICTION] = plants["static"]
     jobs = []
-    for name in MODELS:
+    for name in models:
         p = plants.get(name, plant)
         jobs.append((name, p, frictions[name]))
     runs: dict[str, ClosedLoopResult] = {}
@@ -186,8 +225,8 @@ def run_sinusoid(
         if id(p) not in linear_cache:
             linear_cache[id(p)] = simulate_closed_loop(p, None, controller, r, dt, initial_velocity=v0, drive_limit=drive_limit).error
         baselines[name] = linear_cache[id(p)]
-    metrics = {name: glitch_metrics(t, runs[name].error, r, baseline=baselines[name], window=window) for name in MODELS}
-    params = {"amplitude_m": amplitude, "frequency_hz": frequency, "dt_s": dt, "periods": periods}
+    metrics = {name: glitch_metrics(t, runs[name].error, r, baseline=baselines[name], window=window) for name in models}
+    params = {"amplitude_m": amplitude, "frequency_hz": frequency, "dt_s": dt, "periods": periods, "static_v_linear_m_s": static.v_linear}
     return ScenarioResult(runs, baselines, metrics, params)
 
 
@@ -195,6 +234,9 @@ __all__ = [
     "PAPER_TABLE3",
     "DEFAULT_GAINS",
     "MODELS",
+    "STICTION",
+    "PAPER_STATIC_V_LINEAR",
+    "paper_static_map",
     "ScenarioResult",
     "scenario_controller",
     "table3_plant",
