@@ -327,7 +327,7 @@ def bode_figure(curves: list[tuple[str, NDArray[np.float64], NDArray[np.complex1
 
 
 def _plot_plant(res: IdentificationResult) -> list:
-    frf: FRF = res.data["frf"]
+    frf: FRF = res.data["frf"].select(0.0, float(res.data["fit_f"].max()))
     p = [res.value(k) for k in PLANT_NAMES]
     T = float(res.info.get("zoh_dt", 0.0))
     fig = bode_figure(
