@@ -255,16 +255,17 @@ def lstsq(X: Array, y: Array) -> tuple[Array, Array]:
     scale = np.sqrt((X**2).sum(axis=0))
     scale[scale == 0] = 1.0
     Xs = X / scale
-    Q, R = np.linalg.qr(Xs)
+    G = Xs.T @ Xs
     try:
-        theta_s = np.linalg.solve(R, Q.T @ y)
-        if not np.all(np.isfinite(theta_s)) or np.linalg.cond(R) > 1e12:
+        L = np.linalg.cholesky(G)
+        theta_s = np.linalg.solve(L.T, np.linalg.solve(L, Xs.T @ y))
+        if not np.all(np.isfinite(theta_s)) or np.min(np.diag(L)) ** 2 < 1e-12 * np.max(np.diag(G)):
             raise np.linalg.LinAlgError
-        Rinv = np.linalg.inv(R)
-        cov_unit = Rinv @ Rinv.T
+        Linv = np.linalg.inv(L)
+        cov_unit = Linv.T @ Linv
     except np.linalg.LinAlgError:
         theta_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
-        cov_unit = np.linalg.pinv(Xs.T @ Xs)
+        cov_unit = np.linalg.pinv(G)
     r = y - Xs @ theta_s
     sigma2 = float(r @ r) / (X.shape[0] - X.shape[1])
     cov_s = sigma2 * cov_unit

@@ -122,7 +122,7 @@ def _score(stat: float, null: Array) -> tuple[float, float]:
 Z_THRESHOLD = 5.0
 
 
-def binned_test(variable: str, x: Array, r: Array, *, nbins: int = 24, n_null: int = 199, rng: np.random.Generator, odd_sign: Array | None = None) -> Finding:
+def binned_test(variable: str, x: Array, r: Array, *, nbins: int = 24, n_null: int = 99, rng: np.random.Generator, odd_sign: Array | None = None) -> Finding:
     """Explained variance of the residual by bins of ``x`` against circular-shift surrogates.
 
     With ``odd_sign`` the residual is multiplied by it (``sign(qd)``) first: structure that
@@ -141,7 +141,32 @@ def binned_test(variable: str, x: Array, r: Array, *, nbins: int = 24, n_null: i
                    curve={"x": x, "y": y, "centres": centres, "means": mu, "null95": float(np.percentile(null, 95))})
 
 
-def lag_test(s: Signals, r: Array, y_hat: Array, *, n_null: int = 199, rng: np.random.Generator) -> Finding:
+def time_test(variable: str, t: Array, r: Array, chunk: int, *, odd_sign: Array | None = None, nblocks: int = 12) -> Finding:
+    """Do the residual's means over ``nblocks`` stretches of time differ more than its short-term
+    noise allows?  Short chunks (``chunk`` rows) estimate that noise; an F test compares the
+    spread of block means with it.  (Circular shifts cannot serve as the null here: a slow
+    component stays slow when shifted.)"""
+    from scipy import stats
+
+    y = r * odd_sign if odd_sign is not None else r
+    m = y.size // chunk
+    if m < 2 * nblocks:
+        nblocks = max(2, m // 2)
+    c = y[: m * chunk].reshape(m, chunk).mean(axis=1)
+    k = m // nblocks
+    c = c[: k * nblocks].reshape(nblocks, k)
+    bm = c.mean(axis=1)
+    within = float(((c - bm[:, None]) ** 2).sum() / max(nblocks * (k - 1), 1))
+    F = float(k * bm.var(ddof=1) / max(within, 1e-300))
+    p = float(stats.f.sf(F, nblocks - 1, nblocks * (k - 1)))
+    z = float(stats.norm.isf(max(p, 1e-300)))
+    expl = float(bm.var() / max(y.var(), 1e-300))
+    tt = t[: m * chunk].reshape(m, chunk).mean(axis=1)[: k * nblocks].reshape(nblocks, k).mean(axis=1)
+    return Finding(variable, expl, z, p, bool(z > Z_THRESHOLD and expl > 0.01), SUGGESTS[variable], {"F": F},
+                   curve={"x": t, "y": y, "centres": tt, "means": bm, "null95": float("nan")})
+
+
+def lag_test(s: Signals, r: Array, y_hat: Array, *, n_null: int = 99, rng: np.random.Generator) -> Finding:
     """Correlation of the residual with the rate of change of the predicted force (a delay
     ``tau`` leaves ``r ~ -tau df/dt``), and the lag maximising the cross-correlation of
     measured and predicted force."""
@@ -160,11 +185,12 @@ def lag_test(s: Signals, r: Array, y_hat: Array, *, n_null: int = 199, rng: np.r
     f = s.y - s.y.mean()
     g = y_hat - y_hat.mean()
     xc = np.array([np.dot(np.roll(g, L), f) for L in lags]) / (np.linalg.norm(f) * np.linalg.norm(g))
-    return Finding("lag", stat, z, p, bool(p <= 1.0 / (1 + n_null) and z > Z_THRESHOLD), SUGGESTS["lag"],
+    big = abs(tau) > 0.2 * s.dt  # a fifth of a sample: below that, timing is not the story
+    return Finding("lag", stat, z, p, bool(p <= 1.0 / (1 + n_null) and z > Z_THRESHOLD and big), SUGGESTS["lag"],
                    {"delay_estimate_s": tau}, curve={"lags_s": lags * dt_rows, "xcorr": xc})
 
 
-def coherence_test(s: Signals, r: Array, *, n_null: int = 49, rng: np.random.Generator) -> Finding:
+def coherence_test(s: Signals, r: Array, *, n_null: int = 29, rng: np.random.Generator) -> Finding:
     """Peak magnitude-squared coherence between residual and acceleration (a linear dynamic
     effect such as a resonance), against circular-shift surrogates."""
     fs = s.fs / s.dec
@@ -237,10 +263,11 @@ def analyse(s: Signals, r: Array, y_hat: Array, *, seed: int = 0, variables: lis
             if fr.size:
                 f.detail["dominant_period_m"] = float(1.0 / fr[np.argmax(pw)])
         out.append(f)
+    chunk = max(5, int(round(0.25 / (s.dt * s.dec))))
     if "time" in want and moving.sum() > 50:
-        out.append(binned_test("time", R["t"][moving], r[moving], rng=rng, odd_sign=sg[moving], nbins=12))
+        out.append(time_test("time", R["t"][moving], r[moving], chunk, odd_sign=sg[moving]))
     if "time_even" in want:
-        out.append(binned_test("time_even", R["t"], r, rng=rng, nbins=12))
+        out.append(time_test("time_even", R["t"], r, chunk))
     if "acceleration" in want:
         out.append(binned_test("acceleration", R["qdd"], r, rng=rng))
     if "lag" in want:
