@@ -300,30 +300,24 @@ def compensation_sweep(
     jobs: list[dict[str, Any]] = []
     job_of: dict[tuple[Any, ...], int] = {}
 
-    def submit(key: tuple[Any, ...], make: Any) -> int:
+    def submit(key: tuple[Any, ...], controller: Controller, friction: FrictionModel | None, feedforward: NDArray[np.float64] | None = None) -> int:
         if key not in job_of:
             job_of[key] = len(jobs)
-            jobs.append(make())
+            jobs.append(dict(plant=plant, friction=friction, controller=controller, reference=r, dt=dt, initial_velocity=v0, feedforward=feedforward))
         return job_of[key]
 
     which: list[dict[str, int]] = []
     for p in points:
         gains = (p["kp"], p["ki"], p["kd"])
         ctrl = scenario_controller(p["kp"], p["ki"], p["kd"], tf, drive_limit)
-        idx = {"linear": submit(("linear", gains), lambda: dict(plant=plant, friction=None, controller=ctrl, reference=r, dt=dt, initial_velocity=v0))}
+        idx = {"linear": submit(("linear", gains), ctrl, None)}
         for s in names:
             if s == "none":
-                key: tuple[Any, ...] = (s, gains)
-                make = lambda: dict(plant=plant, friction=true_friction, controller=ctrl, reference=r, dt=dt, initial_velocity=v0)  # noqa: E731
+                idx[s] = submit((s, gains), ctrl, true_friction)
             elif s == "dob":
-                key = (s, gains, p["dob_cutoff_hz"])
-                make = lambda: dict(plant=plant, friction=true_friction, controller=PIDDOB(ctrl, plant, p["dob_cutoff_hz"]), reference=r, dt=dt,  # noqa: E731
-                                    initial_velocity=v0)
+                idx[s] = submit((s, gains, p["dob_cutoff_hz"]), PIDDOB(ctrl, plant, p["dob_cutoff_hz"]), true_friction)
             else:
-                key = (s, gains, p["ff_gain"], p["advance"])
-                make = lambda: dict(plant=plant, friction=true_friction, controller=ctrl, reference=r, dt=dt, initial_velocity=v0,  # noqa: E731
-                                    feedforward=ff(s, p["ff_gain"], p["advance"]))
-            idx[s] = submit(key, make)
+                idx[s] = submit((s, gains, p["ff_gain"], p["advance"]), ctrl, true_friction, ff(s, p["ff_gain"], p["advance"]))
         which.append(idx)
     results = _simulate_many(jobs)
     rows: list[dict[str, float | str]] = []

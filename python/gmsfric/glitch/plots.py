@@ -77,11 +77,11 @@ def plot_compensation(result: "CompensationResult", *, zoom: float = 4.0) -> "Fi
     for name, run in result.runs.items():
         m = (run.t >= t0 - zoom) & (run.t <= t0 + zoom)
         label = "no compensation" if name == "none" else _LABELS.get(name, name)
-        ax0.plot(run.t[m] - t0, (run.error - result.baseline)[m] * 1e6, lw=1.0,
-                 label=f"{label}: {result.metrics[name].height * 1e6:.3f} µm")
-        ff = result.feedforward[name]
+        (line,) = ax0.plot(run.t[m] - t0, (run.error - result.baseline)[m] * 1e6, lw=1.0,
+                           label=f"{label}: {result.metrics[name].height * 1e6:.3f} µm")
+        ff = result.feedforward.get(name)
         if ff is not None:
-            ax1.plot(run.t[m] - t0, ff[m], lw=1.0, label=_LABELS.get(name, name))
+            ax1.plot(run.t[m] - t0, ff[m], lw=1.0, color=line.get_color(), label=_LABELS.get(name, name))
         if name == "none":
             ax1.plot(run.t[m] - t0, run.friction[m] / result.force_gain, "k--", lw=0.8, label="true friction / force_gain")
     ax0.set_ylabel("glitch e - e_lin [µm]")
