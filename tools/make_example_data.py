@@ -32,8 +32,8 @@ def presliding_example() -> None:
     rng = np.random.default_rng(7)
     dt = 5e-3
     t = np.arange(0, 20.0, dt)
-    # 10 s small (2 µm) then 10 s large (10 µm) amplitude, both at 0.1 Hz
-    amp = np.where(t < 10.0, 2e-6, 10e-6)
+    # 10 s small (2 µm) then 10 s large (30 µm: beyond the last block's 12.7 µm break) amplitude, 0.1 Hz
+    amp = np.where(t < 10.0, 2e-6, 30e-6)
     x = amp * np.sin(2 * np.pi * 0.1 * t)
     gms = presets.paper_gms()
     f = g.simulate_friction(gms, t, x) + rng.normal(0, 2e-4, t.size)
