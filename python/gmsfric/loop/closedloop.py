@@ -46,9 +46,11 @@ def simulate_model(model: LinearModel, sig: Signals, controller: PID | Cascade) 
     d = sig.data
     if d.reference is None:
         raise InvalidInputError(f"{d.source}: a closed-loop simulation needs a reference column")
-    p = {k: v["value"] for k, v in model.params().items()}
+    p = {k: v["value"] for k, v in model.params().items() if k != "sampling_hold_s"}
     gain = d.gain if d.gain is not None else 1.0
-    plant = Plant.from_mass(max(p["M"], 1e-9), force_gain=gain, delay=model.delay)
+    # the core holds the command over each step already: the sampling-hold alignment is not a delay
+    delay = max(model.delay - model.extras.get("sampling_hold_s", 0.0), 0.0)
+    plant = Plant.from_mass(max(p["M"], 1e-9), force_gain=gain, delay=delay)
     fc = max(p.get("Fc", 0.0), 0.0)
     fs = fc + max(p.get("Fs_minus_Fc", 0.0), 0.0)
     vs = p.get("vs", 1.0)

@@ -24,6 +24,10 @@ def format_table(result: "LoopResult") -> str:
     b = d["baseline"]
     lines.append(f"baseline: {b['model']}")
     lines.append(f"{'baseline':<36}{b['estimation_error_pct']:>8.3f}{b['validation_error_pct']:>8.3f}")
+    al = d.get("alignment") or {}
+    for a in al.get("tests", []):
+        lines.append(f"  {'sampling hold (+' + format(al['sampling_hold_s'] * 1e3, '.3g') + ' ms), after r' + str(a['after_round']):<34}{a['estimation_error_pct']:>8.3f}{a['validation_error_pct']:>8.3f}  "
+                     f"{'APPLIED (alignment, not an effect)' if a['applied'] else 'not applied'} t = {a['t_heldout']}")
     for s in d["steps"]:
         e = "   n/a" if s["estimation_error_pct"] is None else f"{s['estimation_error_pct']:8.3f}"
         v = "   n/a" if s["validation_error_pct"] is None else f"{s['validation_error_pct']:8.3f}"
