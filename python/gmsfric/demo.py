@@ -4,8 +4,8 @@
    inverse-model least squares.
 2. GMS pre-sliding: blocks identified automatically (virgin curve, optimal knots, superposition,
    hysteresis refinement) from a pre-sliding test (small and large sinusoids).
-3. Closed-loop quadrant glitches on the paper's axis: tracking error of a 10 mm, 0.01 Hz sine
-   without friction, with the static map and with GMS.
+3. Closed-loop quadrant glitches on the paper's axis (``gmsfric.glitch``): tracking error of a
+   10 mm, 0.01 Hz sine without friction, with the static map and with GMS.
 """
 
 from __future__ import annotations
@@ -22,8 +22,7 @@ from scipy.signal import butter, filtfilt
 from . import presets
 from .io import load_columns
 from .models import StaticFriction, Stribeck, simulate_friction
-from .plotting import new_figure, plot_friction_map, plot_hysteresis
-from .system import simulate_closed_loop
+from .plotting import plot_friction_map, plot_hysteresis
 
 
 def example_path(name: str) -> Path:
@@ -95,43 +94,23 @@ def run(out: Path, *, plots: bool = True) -> dict[str, Any]:
         for j, extra in enumerate(ident.plot()):
             extra.savefig(out / f"gms_identification_{j + 1}.png", dpi=120)
 
-    # 3. closed-loop glitches
-    dt = 1e-4
-    tt = np.arange(0.0, 100.0, dt)
-    ref = 0.01 * np.sin(2 * np.pi * 0.01 * tt)
-    plant, pid = presets.paper_plant(), presets.paper_pid()
-    glitch: dict[str, Any] = {}
-    runs = {}
+    # 3. closed-loop glitches: the paper's Fig. 14 scenario (see docs/glitch.md)
+    from .glitch import plot_tracking_errors, run_sinusoid
+
     t0 = time.perf_counter()
-    for name, model in (("none", None), ("static", presets.paper_static_friction()), ("gms", presets.paper_gms())):
-        res = simulate_closed_loop(plant, model, pid, ref, dt)
-        runs[name] = res
+    scen = run_sinusoid()
     elapsed = time.perf_counter() - t0
-    base = runs["none"].error
-    reversal = int(round(25.0 / dt))  # the reference reverses at t = 25 s
-    win = slice(reversal - int(0.5 / dt), reversal + int(5.0 / dt))
-    for name, res in runs.items():
-        spike = res.error[win] - base[win]  # the friction-induced part of the error
-        glitch[name] = {"peak_error_m": float(np.max(np.abs(res.error[win]))), "glitch_m": float(np.max(np.abs(spike)))}
-    summary["closed_loop"] = {**glitch, "steps_per_second": 3 * tt.size / elapsed}
-    print("3. Closed loop on the paper's axis (10 mm, 0.01 Hz sine, PID, 1.29 ms delay), 3 x 1e6 steps"
-          f" in {elapsed:.2f} s ({3 * tt.size / elapsed / 1e6:.1f} M steps/s)")
-    for name in ("none", "static", "gms"):
-        print(f"   {name:>6}: peak error near the reversal {glitch[name]['peak_error_m'] * 1e6:7.3f} µm,"
-              f" friction glitch {glitch[name]['glitch_m'] * 1e9:8.1f} nm")
+    n_steps = sum(r.t.size for r in scen.runs.values())
+    glitch = scen.summary()
+    summary["closed_loop"] = {name: {"peak_error_m": float(v["peak_error_m"])} for name, v in glitch.items()}  # type: ignore[arg-type]
+    summary["closed_loop"]["steps_per_second"] = n_steps / elapsed
+    print("3. Quadrant glitches on the paper's axis (10 mm, 0.01 Hz sine, PID, 1.29 ms delay):"
+          f" {len(scen.runs)} runs, {n_steps / 1e6:.0f} M steps in {elapsed:.2f} s")
+    labels = {"none": "no friction", "static": "static map (Simulink linear region)", "gms": "GMS", "static_stiction": "static map with true stiction"}
+    for name, values in glitch.items():
+        print(f"   {labels.get(name, name):>36}: peak glitch {float(values['peak_error_m']) * 1e6:6.3f} µm")  # type: ignore[arg-type]
     if plots:
-        fig, axes = new_figure(2, 1, figsize=(7.5, 6.0))
-        for name, res in runs.items():
-            axes[0].plot(res.t, res.error * 1e6, lw=0.8, label=name)
-            axes[1].plot(res.t[win], res.error[win] * 1e6, lw=0.9, label=name)
-        axes[0].set_ylabel("tracking error [µm]")
-        axes[1].set_ylabel("error near reversal [µm]")
-        axes[1].set_xlabel("time [s]")
-        for ax in axes:
-            ax.grid(True, alpha=0.3)
-            ax.legend(fontsize="small")
-        axes[0].set_title("Tracking error without friction, with the static map and with GMS")
-        fig.savefig(out / "closed_loop_glitches.png", dpi=120)
+        plot_tracking_errors(scen).savefig(out / "closed_loop_glitches.png", dpi=120)
     if plots:
         print(f"Figures saved in {out.resolve()}/")
     return summary
