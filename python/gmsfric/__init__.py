@@ -9,7 +9,18 @@ from __future__ import annotations
 from ._gmsfric import __version__
 from .errors import DataError, GmsfricError, IdentificationError, InvalidInputError, SimulationError
 from .models import GMS, LuGre, MaxwellSlip, StaticFriction, Stribeck, simulate_friction
-from .system import PID, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
+from .system import PID, PIDDOB, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
+
+# Subpackages load on first use (they pull in scipy): ``gmsfric.identify.fit_static_map(...)``.
+_SUBMODULES = ("identify", "loop", "glitch", "batch", "presets", "io", "plotting", "demo")
+
+
+def __getattr__(name: str) -> object:
+    if name in _SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "__version__",
@@ -21,6 +32,7 @@ __all__ = [
     "simulate_friction",
     "Plant",
     "PID",
+    "PIDDOB",
     "Cascade",
     "ClosedLoopResult",
     "simulate_closed_loop",
@@ -29,4 +41,5 @@ __all__ = [
     "SimulationError",
     "DataError",
     "IdentificationError",
+    *_SUBMODULES,
 ]
