@@ -78,3 +78,10 @@ def test_unknown_effect_is_reported_not_forced():
 def test_clean_rig_reports_no_unexplained_structure_in_time_or_position():
     res = run_loop(simulate_rig(Rig(seed=42, fs=1000.0, duration=16.0)), None, CFG)
     assert not {"time", "time_even", "position", "position_odd", "velocity"} & {u["variable"] for u in res.unexplained}
+
+
+def test_offset_is_a_candidate_with_a_rigid_baseline():
+    rig = Rig(seed=61, offset=-4.0, duration=14.0)
+    res = run_loop(simulate_rig(rig), None, LoopConfig(progress=False, baseline=("inertia", "viscous", "coulomb")))
+    assert res.effects == ["offset"]
+    assert res.final.params()["offset"]["value"] == pytest.approx(rig.offset, abs=0.5)

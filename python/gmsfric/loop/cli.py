@@ -38,6 +38,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--force-unit", default="N")
     p.add_argument("--json", metavar="OUT", help="write the report as JSON")
     p.add_argument("--plot", metavar="DIR", help="write figures (PNG) into DIR")
+    p.add_argument("--baseline", choices=("reference", "rigid"), default="reference",
+                   help="reference: M qdd + Fv qd + Fc sign(qd) + offset (EMPS, default); rigid: without the offset, which becomes a candidate effect")
     p.add_argument("--holdout", type=float, default=0.3, help="fraction of EST held out when there is no --validate (default 0.3)")
     cl = p.add_argument_group("closed-loop simulation (optional: needs a reference and a cascade controller)")
     cl.add_argument("--reference", metavar="COL", help="reference position column")
@@ -61,7 +63,8 @@ def main(args: argparse.Namespace) -> int:
     val = None
     if args.validate:
         val = load_axis_data(args.validate, disturbance=args.disturbance, **common)
-    cfg = LoopConfig(holdout_fraction=args.holdout, progress=not args.quiet)
+    base = ("inertia", "viscous", "coulomb", "offset") if args.baseline == "reference" else ("inertia", "viscous", "coulomb")
+    cfg = LoopConfig(holdout_fraction=args.holdout, baseline=base, progress=not args.quiet)
     result = run_loop(est, val, cfg)
     sims = None
     if args.reference and args.kp is not None and args.kv is not None:
