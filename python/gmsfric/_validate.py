@@ -26,9 +26,9 @@ def as_array(name: str, values: ArrayLike, *, min_len: int = 1) -> NDArray[np.fl
         raise InvalidInputError(f"`{name}` must be one-dimensional, got shape {arr.shape}")
     if arr.size < min_len:
         raise InvalidInputError(f"`{name}` is empty or too short: {arr.size} sample(s), need at least {min_len}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise InvalidInputError(f"`{name}` has a non-finite value ({arr[bad[0]]}) at index {bad[0]}")
+    if not np.isfinite(arr).all():
+        first = int(np.flatnonzero(~np.isfinite(arr))[0])
+        raise InvalidInputError(f"`{name}` has a non-finite value ({arr[first]}) at index {first}")
     return arr
 
 

@@ -324,4 +324,6 @@ def simulate_closed_loop(
         None if initial_position is None else finite("initial_position", initial_position),
         finite("initial_velocity", initial_velocity),
     )
-    return ClosedLoopResult(t=np.arange(n) * dt, reference=ref, **out)
+    t = np.arange(n, dtype=np.float64)
+    t *= dt  # in place: one allocation for the time axis
+    return ClosedLoopResult(t=t, reference=ref, **out)

@@ -8,9 +8,9 @@
 use crate::control::{Controller, ControllerModel};
 use crate::error::{check, CoreError, Result};
 use crate::friction::{Coupling, FrictionElement, FrictionModel};
+use crate::numeric::fma;
 use crate::plant::{DelayLine, Plant};
 use crate::{with_controller, with_friction};
-use nalgebra::Vector2;
 
 /// No friction at all (the reference case of the paper's Fig. 14).
 #[derive(Debug, Clone, Copy, Default)]
@@ -123,6 +123,35 @@ pub struct ClosedLoopOutput {
     pub friction: Vec<f64>,
 }
 
+/// Mutable views of a run's output arrays (each as long as the reference), so callers can hand
+/// in memory they own (numpy arrays from the binding) instead of receiving new vectors.
+#[derive(Debug)]
+pub struct ClosedLoopBuffers<'a> {
+    pub position: &'a mut [f64],
+    pub velocity: &'a mut [f64],
+    pub measured: &'a mut [f64],
+    pub command: &'a mut [f64],
+    pub friction: &'a mut [f64],
+}
+
+impl ClosedLoopOutput {
+    /// Zeroed output vectors for `n` samples.
+    pub fn zeros(n: usize) -> Self {
+        Self { position: vec![0.0; n], velocity: vec![0.0; n], measured: vec![0.0; n], command: vec![0.0; n], friction: vec![0.0; n] }
+    }
+
+    /// Mutable views of every array.
+    pub fn buffers(&mut self) -> ClosedLoopBuffers<'_> {
+        ClosedLoopBuffers {
+            position: &mut self.position,
+            velocity: &mut self.velocity,
+            measured: &mut self.measured,
+            command: &mut self.command,
+            friction: &mut self.friction,
+        }
+    }
+}
+
 /// Simulate with concrete (monomorphised) friction and controller types.
 pub fn simulate_generic<F: FrictionElement, C: Controller>(
     plant: &Plant,
@@ -130,47 +159,93 @@ pub fn simulate_generic<F: FrictionElement, C: Controller>(
     controller: &mut C,
     input: &ClosedLoopInput<'_>,
 ) -> Result<ClosedLoopOutput> {
+    let mut out = ClosedLoopOutput::zeros(input.reference.len());
+    simulate_generic_into(plant, friction, controller, input, out.buffers())?;
+    Ok(out)
+}
+
+/// [`simulate_generic`] writing into caller-owned buffers.
+pub fn simulate_generic_into<F: FrictionElement, C: Controller>(
+    plant: &Plant,
+    friction: &mut F,
+    controller: &mut C,
+    input: &ClosedLoopInput<'_>,
+    out: ClosedLoopBuffers<'_>,
+) -> Result<()> {
     input.validate()?;
     let d = plant.discretize(input.dt)?;
     let n = input.reference.len();
-    let mut out = ClosedLoopOutput {
-        position: Vec::with_capacity(n),
-        velocity: Vec::with_capacity(n),
-        measured: Vec::with_capacity(n),
-        command: Vec::with_capacity(n),
-        friction: Vec::with_capacity(n),
-    };
+    for (name, buf) in [("position", &out.position), ("velocity", &out.velocity), ("measured", &out.measured), ("command", &out.command), ("friction", &out.friction)] {
+        check::same_len(name, buf, "reference", n)?;
+    }
+    // Re-slice to exactly n so the indexing below needs no bounds checks.
+    let (pos, vel, meas, cmd, fric) = (&mut out.position[..n], &mut out.velocity[..n], &mut out.measured[..n], &mut out.command[..n], &mut out.friction[..n]);
+    let reference = &input.reference[..n];
     let mut line = DelayLine::new(d.delay_steps, 0.0);
-    let mut x = Vector2::new(input.initial_position, input.initial_velocity);
-    let q = input.quantization;
-    let at = |a: Option<&[f64]>, k: usize| a.map_or(0.0, |a| a[k]);
+    // Scalars instead of 2x2 matrix types: the loop body is a handful of FMAs.
+    let (p00, p01, p10, p11) = (d.phi[(0, 0)], d.phi[(0, 1)], d.phi[(1, 0)], d.phi[(1, 1)]);
+    let (go0, go1, gn0, gn1) = (d.gamma_old[0], d.gamma_old[1], d.gamma_new[0], d.gamma_new[1]);
+    let (gf0, gf1) = (d.gamma_force[0], d.gamma_force[1]);
+    let (mut xp, mut xv) = (input.initial_position, input.initial_velocity);
+    let (q, inv_q) = (input.quantization, if input.quantization > 0.0 { 1.0 / input.quantization } else { 0.0 });
+    let (lo, hi, dt) = (input.drive_min, input.drive_max, input.dt);
     for k in 0..n {
-        let mut y = x[0] + at(input.measurement_noise, k);
-        if q > 0.0 {
-            y = (y / q).round() * q;
+        let mut y = xp;
+        if let Some(noise) = input.measurement_noise {
+            y += noise[k];
         }
-        let u_ctrl = controller.update(input.reference[k], y);
-        let u = (u_ctrl + at(input.feedforward, k) + at(input.input_disturbance, k)).clamp(input.drive_min, input.drive_max);
+        if q > 0.0 {
+            y = (y * inv_q).round() * q;
+        }
+        let mut u = controller.update(reference[k], y);
+        if let Some(ff) = input.feedforward {
+            u += ff[k];
+        }
+        if let Some(dist) = input.input_disturbance {
+            u += dist[k];
+        }
+        let u = u.clamp(lo, hi);
         let (old, new) = line.push(u);
-        let free = d.phi * x + d.gamma_old * old + d.gamma_new * new - d.gamma_force * at(input.load_force, k);
-        let coupling = Coupling {
-            free_dx: free[0] - x[0],
-            dx_per_newton: d.gamma_force[0],
-            free_v: free[1],
-            v_per_newton: d.gamma_force[1],
-        };
-        let f = friction.advance_coupled(&coupling, input.dt);
-        out.position.push(x[0]);
-        out.velocity.push(x[1]);
-        out.measured.push(y);
-        out.command.push(u);
-        out.friction.push(f);
-        x = free - d.gamma_force * f;
-        if !(x[0].is_finite() && x[1].is_finite() && f.is_finite()) {
-            return Err(CoreError::Diverged { time: (k + 1) as f64 * input.dt });
+        // The state-dependent terms last: they are the ones waiting for the previous step.
+        let mut free_p = fma(p00, xp, fma(p01, xv, fma(go0, old, gn0 * new)));
+        let mut free_v = fma(p11, xv, fma(p10, xp, fma(go1, old, gn1 * new)));
+        if let Some(load) = input.load_force {
+            free_p -= gf0 * load[k];
+            free_v -= gf1 * load[k];
+        }
+        let coupling = Coupling { free_dx: free_p - xp, dx_per_newton: gf0, free_v, v_per_newton: gf1 };
+        let f = friction.advance_coupled(&coupling, dt);
+        pos[k] = xp;
+        vel[k] = xv;
+        meas[k] = y;
+        cmd[k] = u;
+        fric[k] = f;
+        xp = fma(-gf0, f, free_p);
+        xv = fma(-gf1, f, free_v);
+        // A NaN or inf anywhere makes the sum non-finite: one test per step.
+        if !(xp + xv + f).is_finite() {
+            return Err(CoreError::Diverged { time: (k + 1) as f64 * dt });
         }
     }
-    Ok(out)
+    Ok(())
+}
+
+/// [`simulate`] writing into caller-owned buffers.
+pub fn simulate_into(
+    plant: &Plant,
+    friction: Option<&mut FrictionModel>,
+    controller: &mut ControllerModel,
+    input: &ClosedLoopInput<'_>,
+    out: ClosedLoopBuffers<'_>,
+) -> Result<()> {
+    controller.reset();
+    match friction {
+        None => with_controller!(controller, c => simulate_generic_into(plant, &mut NoFriction, c, input, out)),
+        Some(model) => {
+            model.reset();
+            with_friction!(model, f => with_controller!(&mut *controller, c => simulate_generic_into(plant, f, c, input, out)))
+        }
+    }
 }
 
 /// Simulate with models chosen at run time; dispatches once, then runs the monomorphised loop.

@@ -27,6 +27,10 @@ pub struct Pid {
     integral: f64,
     deriv: f64,
     prev_error: Option<f64>,
+    /// Derivative filter coefficients `tf / (tf + dt)` and `kd / (tf + dt)`, and `ki dt`.
+    d_keep: f64,
+    d_gain: f64,
+    ki_dt: f64,
 }
 
 impl Pid {
@@ -42,7 +46,8 @@ impl Pid {
                 reason: format!("output limits must satisfy u_min < u_max, got [{u_min}, {u_max}]"),
             });
         }
-        Ok(Self { kp, ki, kd, tf, u_min, u_max, dt, integral: 0.0, deriv: 0.0, prev_error: None })
+        let inv = 1.0 / (tf + dt);
+        Ok(Self { kp, ki, kd, tf, u_min, u_max, dt, integral: 0.0, deriv: 0.0, prev_error: None, d_keep: tf * inv, d_gain: kd * inv, ki_dt: ki * dt })
     }
 }
 
@@ -54,8 +59,8 @@ impl Controller for Pid {
         self.prev_error = Some(e);
         let de = e - prev;
         // Backward-Euler filtered derivative: d_k = (tf d_{k-1} + kd (e_k - e_{k-1})) / (tf + dt).
-        self.deriv = (self.tf * self.deriv + self.kd * de) / (self.tf + self.dt);
-        let trial_integral = self.integral + self.ki * e * self.dt;
+        self.deriv = self.d_keep * self.deriv + self.d_gain * de;
+        let trial_integral = self.integral + self.ki_dt * e;
         let u = self.kp * e + trial_integral + self.deriv;
         let clamped = u.clamp(self.u_min, self.u_max);
         let winding_up = (u > self.u_max && e * self.ki > 0.0) || (u < self.u_min && e * self.ki < 0.0);

@@ -7,6 +7,7 @@
 //! GMS blocks (k ~ 1e6..1e7 N/m, a few nm of pre-sliding) are stable and accurate at any step.
 
 use crate::error::{check, CoreError, Result};
+use crate::numeric::fma;
 use crate::stribeck::{check_fractions, StaticFriction, Stribeck};
 
 /// How a plant step responds to a constant friction force `F` held over the step:
@@ -149,15 +150,11 @@ pub enum SlipLaw {
     Displacement,
 }
 
-/// GMS block mode.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Mode {
-    Stick,
-    /// Slipping in the given direction (+1 / -1).
-    Slip(f64),
-}
-
 /// Generalized Maxwell-slip model with N parallel elasto-slip blocks.
+///
+/// Hot-path layout: block modes are `0.0` (sticking) or `+1.0` / `-1.0` (slipping in that
+/// direction); the sum of block forces and the stiffness of the blocks that are not slipping in
+/// each direction are kept up to date by `advance`, so the coupled step needs no extra pass.
 #[derive(Debug, Clone)]
 pub struct Gms {
     pub stribeck: Stribeck,
@@ -171,12 +168,18 @@ pub struct Gms {
     pub sigma: f64,
     pub slip_law: SlipLaw,
     forces: Vec<f64>,
-    modes: Vec<Mode>,
+    slip: Vec<f64>,
     total_k: f64,
-    /// Memo of the last slip decay factor: `(s, dt, exp(-rate(s) dt))`. At speeds where the
-    /// Stribeck curve has settled, `s == fc` exactly on every step and the division and the
-    /// exponential are skipped (same inputs, same bits).
+    sum_forces: f64,
+    k_free_pos: f64,
+    k_free_neg: f64,
+    /// `(dt, 1/dt)`: the step rarely changes, a multiply is cheaper than a divide.
+    inv_dt: (f64, f64),
+    /// `(s, dt, exp(-rate(s) dt))`: at speeds where the Stribeck curve has settled `s == fc`
+    /// exactly, and the division and exponential are skipped (same inputs, same bits).
     decay_memo: (f64, f64, f64),
+    /// `(K, dx_per_newton, 1 / (1 + dx_per_newton K))` for the coupled step.
+    coupling_memo: (f64, f64, f64),
 }
 
 impl Gms {
@@ -191,7 +194,23 @@ impl Gms {
         check::non_negative("sigma", sigma)?;
         let n = k.len();
         let total_k = k.iter().sum();
-        Ok(Self { stribeck, k, alpha, c, sigma, slip_law, forces: vec![0.0; n], modes: vec![Mode::Stick; n], total_k, decay_memo: (f64::NAN, f64::NAN, 0.0) })
+        Ok(Self {
+            stribeck,
+            k,
+            alpha,
+            c,
+            sigma,
+            slip_law,
+            forces: vec![0.0; n],
+            slip: vec![0.0; n],
+            total_k,
+            sum_forces: 0.0,
+            k_free_pos: total_k,
+            k_free_neg: total_k,
+            inv_dt: (f64::NAN, f64::NAN),
+            decay_memo: (f64::NAN, f64::NAN, 0.0),
+            coupling_memo: (f64::NAN, f64::NAN, 0.0),
+        })
     }
 
     /// Number of blocks.
@@ -206,7 +225,45 @@ impl Gms {
 
     /// Whether block `i` is slipping.
     pub fn is_slipping(&self, i: usize) -> bool {
-        matches!(self.modes[i], Mode::Slip(_))
+        self.slip[i] != 0.0
+    }
+
+    /// Sum of block stiffnesses (the initial pre-sliding stiffness, N/m).
+    pub fn total_stiffness(&self) -> f64 {
+        self.total_k
+    }
+
+    fn refresh_free_stiffness(&mut self) {
+        let (mut k_pos, mut k_neg) = (0.0, 0.0);
+        for (&m, &ki) in self.slip.iter().zip(&self.k) {
+            k_pos += if m == 1.0 { 0.0 } else { ki };
+            k_neg += if m == -1.0 { 0.0 } else { ki };
+        }
+        self.k_free_pos = k_pos;
+        self.k_free_neg = k_neg;
+    }
+
+    #[inline(always)]
+    fn inv_dt(&mut self, dt: f64) -> f64 {
+        if dt != self.inv_dt.0 {
+            self.inv_dt = (dt, 1.0 / dt);
+        }
+        self.inv_dt.1
+    }
+
+    #[inline(always)]
+    fn decay(&mut self, s: f64, dx: f64, dt: f64) -> f64 {
+        match self.slip_law {
+            SlipLaw::Time => {
+                if s != self.decay_memo.0 || dt != self.decay_memo.1 {
+                    let rate = self.c / s.max(f64::MIN_POSITIVE);
+                    self.decay_memo = (s, dt, (-rate * dt).exp());
+                }
+                self.decay_memo.2
+            }
+            // rate c |v| over dt = c |dx|
+            SlipLaw::Displacement => (-(self.c * dx.abs())).exp(),
+        }
     }
 }
 
@@ -214,85 +271,81 @@ impl FrictionElement for Gms {
     #[inline]
     fn force(&self) -> f64 {
         // The viscous part depends on the last velocity only and is included by `advance`.
-        self.forces.iter().sum()
+        self.sum_forces
     }
 
+    #[inline]
     fn advance(&mut self, dx: f64, dt: f64) -> f64 {
-        let v = dx / dt;
         if dx == 0.0 {
             // At rest every block sticks and holds its force.
-            for m in self.modes.iter_mut() {
-                *m = Mode::Stick;
-            }
-            return self.forces.iter().sum();
+            self.slip.iter_mut().for_each(|m| *m = 0.0);
+            self.k_free_pos = self.total_k;
+            self.k_free_neg = self.total_k;
+            return self.sum_forces;
         }
-        let dir = dx.signum();
+        let v = dx * self.inv_dt(dt);
+        let dir = if dx > 0.0 { 1.0 } else { -1.0 };
         // One Stribeck evaluation and one exponential per step, shared by all blocks.
         let s = self.stribeck.eval(v);
-        let decay = match self.slip_law {
-            SlipLaw::Time => {
-                if s == self.decay_memo.0 && dt == self.decay_memo.1 {
-                    self.decay_memo.2
-                } else {
-                    let rate = self.c / s.max(f64::MIN_POSITIVE);
-                    let decay = (-rate * dt).exp();
-                    self.decay_memo = (s, dt, decay);
-                    decay
-                }
-            }
-            SlipLaw::Displacement => (-(self.c * v.abs()) * dt).exp(),
-        };
+        let decay = self.decay(s, dx, dt);
+        let dir_s = dir * s;
         let mut total = 0.0;
-        for i in 0..self.k.len() {
-            let target = dir * self.alpha[i] * s;
-            let f = self.forces[i];
-            let slipping_along = matches!(self.modes[i], Mode::Slip(d) if d == dir);
-            let new_f = if slipping_along {
-                target + (f - target) * decay
+        let mut mode_changed = false;
+        for (((f, m), &ki), &ai) in self.forces.iter_mut().zip(self.slip.iter_mut()).zip(&self.k).zip(&self.alpha) {
+            let target = ai * dir_s;
+            let f_old = *f;
+            if *m == dir {
+                *f = fma(f_old - target, decay, target);
             } else {
                 // Sticking (or reversing out of slip): elastic update, capped at the break force.
-                let stuck = f + self.k[i] * dx;
-                if stuck * dir >= target * dir {
-                    self.modes[i] = Mode::Slip(dir);
-                    if f * dir >= target * dir {
-                        // Already beyond the (lower) break force: relax from f over the whole step.
-                        target + (f - target) * decay
-                    } else {
-                        // Reaches the break force inside the step, where it equals the target.
-                        target
-                    }
+                let stuck = fma(ki, dx, f_old);
+                if (stuck - target) * dir >= 0.0 {
+                    *m = dir;
+                    mode_changed = true;
+                    // Reaching the break force inside the step puts the block on its target;
+                    // a block already beyond a (lower) break force relaxes over the whole step.
+                    *f = if (f_old - target) * dir >= 0.0 { fma(f_old - target, decay, target) } else { target };
                 } else {
-                    self.modes[i] = Mode::Stick;
-                    stuck
+                    mode_changed |= *m != 0.0;
+                    *m = 0.0;
+                    *f = stuck;
                 }
-            };
-            self.forces[i] = new_f;
-            total += new_f;
+            }
+            total += *f;
         }
-        total + self.sigma * v
+        self.sum_forces = total;
+        if mode_changed {
+            // Rare (break-away, reversals): refresh the stiffness of the non-slipping blocks.
+            self.refresh_free_stiffness();
+        }
+        fma(self.sigma, v, total)
     }
 
+    #[inline]
     fn tangent_stiffness(&self, direction: f64, dt: f64) -> f64 {
-        let mut k = 0.0;
-        for i in 0..self.k.len() {
-            match self.modes[i] {
-                Mode::Slip(d) if d == direction => {}
-                _ => k += self.k[i],
-            }
-        }
+        let k = if direction > 0.0 { self.k_free_pos } else { self.k_free_neg };
         k + self.sigma / dt
     }
 
     fn reset(&mut self) {
         self.forces.iter_mut().for_each(|f| *f = 0.0);
-        self.modes.iter_mut().for_each(|m| *m = Mode::Stick);
+        self.slip.iter_mut().for_each(|m| *m = 0.0);
+        self.sum_forces = 0.0;
+        self.k_free_pos = self.total_k;
+        self.k_free_neg = self.total_k;
     }
-}
 
-impl Gms {
-    /// Sum of block stiffnesses (the initial pre-sliding stiffness, N/m).
-    pub fn total_stiffness(&self) -> f64 {
-        self.total_k
+    /// The default linearly implicit step, with the reciprocal of its denominator cached (the
+    /// tangent stiffness only changes when a block changes mode).
+    #[inline]
+    fn advance_coupled(&mut self, c: &Coupling, dt: f64) -> f64 {
+        let trial = fma(-c.dx_per_newton, self.sum_forces, c.free_dx);
+        let inv_dt = self.inv_dt(dt);
+        let k = if trial >= 0.0 { self.k_free_pos } else { self.k_free_neg } + self.sigma * inv_dt;
+        if k != self.coupling_memo.0 || c.dx_per_newton != self.coupling_memo.1 {
+            self.coupling_memo = (k, c.dx_per_newton, 1.0 / (1.0 + c.dx_per_newton * k));
+        }
+        self.advance(trial * self.coupling_memo.2, dt)
     }
 }
 

@@ -17,11 +17,12 @@ pub mod closed_loop;
 pub mod control;
 pub mod error;
 pub mod friction;
+pub mod numeric;
 pub mod plant;
 pub mod reference;
 pub mod stribeck;
 
-pub use closed_loop::{simulate, simulate_generic, ClosedLoopInput, ClosedLoopOutput, NoFriction};
+pub use closed_loop::{simulate, simulate_generic, simulate_generic_into, simulate_into, ClosedLoopBuffers, ClosedLoopInput, ClosedLoopOutput, NoFriction};
 pub use control::{Cascade, Controller, ControllerModel, Pid};
 pub use error::{CoreError, Result};
 pub use friction::{simulate_position, simulate_velocity, Coupling, FrictionElement, FrictionModel, Gms, LuGre, MaxwellSlip, SlipLaw, StaticElement};

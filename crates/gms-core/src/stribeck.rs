@@ -67,7 +67,7 @@ impl Stribeck {
             // exp(-p) cannot change the sum: skip it (the result is bit-identical).
             return self.fc;
         }
-        self.fc + (self.fs - self.fc) * (-p).exp()
+        crate::numeric::fma(self.fs - self.fc, (-p).exp(), self.fc)
     }
 
     /// The largest value of `s` (the level a sticking contact can hold).

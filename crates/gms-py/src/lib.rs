@@ -182,13 +182,17 @@ fn simulate_closed_loop<'py>(
     input.initial_velocity = initial_velocity;
     let mut fric = friction.map(|f| f.model.clone());
     let mut ctrl = controller.model.clone();
-    let out = detached(py, || core::simulate(&p, fric.as_mut(), &mut ctrl, &input))?;
+    // The core writes into zeroed vectors (calloc: pages appear as they are written), which then
+    // become the numpy arrays without a copy.
+    let mut out = core::ClosedLoopOutput::zeros(input.reference.len());
+    let buffers = out.buffers();
+    detached(py, || core::simulate_into(&p, fric.as_mut(), &mut ctrl, &input, buffers))?;
+    let names = ["position", "velocity", "measured", "command", "friction"];
+    let arrays = [out.position, out.velocity, out.measured, out.command, out.friction].map(|v| v.into_pyarray(py));
     let d = PyDict::new(py);
-    d.set_item("position", out.position.into_pyarray(py))?;
-    d.set_item("velocity", out.velocity.into_pyarray(py))?;
-    d.set_item("measured", out.measured.into_pyarray(py))?;
-    d.set_item("command", out.command.into_pyarray(py))?;
-    d.set_item("friction", out.friction.into_pyarray(py))?;
+    for (name, arr) in names.iter().zip(arrays) {
+        d.set_item(name, arr)?;
+    }
     Ok(d)
 }
 
