@@ -7,7 +7,7 @@
 //! GMS blocks (k ~ 1e6..1e7 N/m, a few nm of pre-sliding) are stable and accurate at any step.
 
 use crate::error::{check, CoreError, Result};
-use crate::numeric::fma;
+use crate::numeric::{fma, ExpOnInterval};
 use crate::stribeck::{check_fractions, StaticFriction, Stribeck};
 
 /// How a plant step responds to a constant friction force `F` held over the step:
@@ -180,6 +180,9 @@ pub struct Gms {
     decay_memo: (f64, f64, f64),
     /// `(K, dx_per_newton, 1 / (1 + dx_per_newton K))` for the coupled step.
     coupling_memo: (f64, f64, f64),
+    /// `(dt, exp on [-c dt / s_min, -c dt / s_max])`: the slip decay's argument stays in that
+    /// narrow range (s lies between fc and fs), where a short polynomial replaces `exp`.
+    decay_exp: (f64, Option<ExpOnInterval>),
 }
 
 impl Gms {
@@ -210,6 +213,7 @@ impl Gms {
             inv_dt: (f64::NAN, f64::NAN),
             decay_memo: (f64::NAN, f64::NAN, 0.0),
             coupling_memo: (f64::NAN, f64::NAN, 0.0),
+            decay_exp: (f64::NAN, None),
         })
     }
 
@@ -256,8 +260,17 @@ impl Gms {
         match self.slip_law {
             SlipLaw::Time => {
                 if s != self.decay_memo.0 || dt != self.decay_memo.1 {
-                    let rate = self.c / s.max(f64::MIN_POSITIVE);
-                    self.decay_memo = (s, dt, (-rate * dt).exp());
+                    if dt != self.decay_exp.0 {
+                        let (lo, hi) = (self.stribeck.fc.min(self.stribeck.fs), self.stribeck.max_level());
+                        let interval = if lo > 0.0 { ExpOnInterval::new(-self.c * dt / lo, -self.c * dt / hi) } else { None };
+                        self.decay_exp = (dt, interval);
+                    }
+                    let x = -(self.c / s.max(f64::MIN_POSITIVE)) * dt;
+                    let decay = match &self.decay_exp.1 {
+                        Some(e) if e.contains(x) => e.eval(x),
+                        _ => x.exp(),
+                    };
+                    self.decay_memo = (s, dt, decay);
                 }
                 self.decay_memo.2
             }
@@ -289,9 +302,10 @@ impl FrictionElement for Gms {
         let s = self.stribeck.eval(v);
         let decay = self.decay(s, dx, dt);
         let dir_s = dir * s;
-        let mut total = 0.0;
+        // Two partial sums halve the serial add chain of the total force.
+        let mut sums = [0.0f64; 2];
         let mut mode_changed = false;
-        for (((f, m), &ki), &ai) in self.forces.iter_mut().zip(self.slip.iter_mut()).zip(&self.k).zip(&self.alpha) {
+        for (i, (((f, m), &ki), &ai)) in self.forces.iter_mut().zip(self.slip.iter_mut()).zip(&self.k).zip(&self.alpha).enumerate() {
             let target = ai * dir_s;
             let f_old = *f;
             if *m == dir {
@@ -311,8 +325,9 @@ impl FrictionElement for Gms {
                     *f = stuck;
                 }
             }
-            total += *f;
+            sums[i & 1] += *f;
         }
+        let total = sums[0] + sums[1];
         self.sum_forces = total;
         if mode_changed {
             // Rare (break-away, reversals): refresh the stiffness of the non-slipping blocks.
