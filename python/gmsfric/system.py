@@ -324,6 +324,10 @@ def simulate_closed_loop(
         None if initial_position is None else finite("initial_position", initial_position),
         finite("initial_velocity", initial_velocity),
     )
+    if out["measured"] is None:  # no noise, no quantisation: the controller saw the true position
+        measured = out["position"].view()
+        measured.flags.writeable = False
+        out["measured"] = measured
     t = np.arange(n, dtype=np.float64)
     t *= dt  # in place: one allocation for the time axis
     return ClosedLoopResult(t=t, reference=ref, **out)

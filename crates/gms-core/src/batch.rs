@@ -11,7 +11,7 @@
 //! finished runs (the Python binding polls it while the GIL is released) and an [`AtomicBool`]
 //! that, once set, makes runs that have not started yet return at once.
 
-use crate::closed_loop::{simulate, ClosedLoopInput, ClosedLoopOutput};
+use crate::closed_loop::{simulate, simulate_into, ClosedLoopBuffers, ClosedLoopInput, ClosedLoopOutput};
 use crate::control::ControllerModel;
 use crate::error::{CoreError, Result};
 use crate::friction::FrictionModel;
@@ -35,6 +35,13 @@ impl Job<'_> {
         let mut friction = self.friction.clone();
         let mut controller = self.controller.clone();
         simulate(&self.plant, friction.as_mut(), &mut controller, &self.input)
+    }
+
+    /// Run this job writing into caller-owned buffers.
+    pub fn run_into(&self, out: ClosedLoopBuffers<'_>) -> Result<()> {
+        let mut friction = self.friction.clone();
+        let mut controller = self.controller.clone();
+        simulate_into(&self.plant, friction.as_mut(), &mut controller, &self.input, out)
     }
 }
 
@@ -104,16 +111,21 @@ fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Res
     }
 }
 
-/// Run one job under the options' cancel flag and progress counter.
-fn run_tracked(job: &Job<'_>, opts: &BatchOptions<'_>) -> Result<ClosedLoopOutput> {
+/// Run `f` under the options' cancel flag and progress counter.
+fn track<T>(opts: &BatchOptions<'_>, f: impl FnOnce() -> Result<T>) -> Result<T> {
     if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
         return Err(cancelled());
     }
-    let out = job.run();
+    let out = f();
     if let Some(p) = opts.progress {
         p.fetch_add(1, Ordering::Relaxed);
     }
     out
+}
+
+/// Run one job under the options' cancel flag and progress counter.
+fn run_tracked(job: &Job<'_>, opts: &BatchOptions<'_>) -> Result<ClosedLoopOutput> {
+    track(opts, || job.run())
 }
 
 /// Run every job in parallel; one result per job, in the order of `jobs`. Runs of different
@@ -174,15 +186,11 @@ pub fn simulate_batch_stacked(jobs: &[Job<'_>], opts: &BatchOptions<'_>) -> std:
                 if i > first_failure.load(Ordering::Relaxed) {
                     return Err(cancelled());
                 }
-                let o = run_tracked(job, opts).inspect_err(|_| {
+                // Each run writes straight into its rows of the stacked arrays.
+                let buffers = ClosedLoopBuffers { position: p, velocity: v, measured: Some(m), command: c, friction: f };
+                track(opts, || job.run_into(buffers)).inspect_err(|_| {
                     first_failure.fetch_min(i, Ordering::Relaxed);
-                })?;
-                p.copy_from_slice(&o.position);
-                v.copy_from_slice(&o.velocity);
-                m.copy_from_slice(&o.measured);
-                c.copy_from_slice(&o.command);
-                f.copy_from_slice(&o.friction);
-                Ok(())
+                })
             })
             .collect()
     })

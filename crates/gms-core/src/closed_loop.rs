@@ -129,7 +129,8 @@ pub struct ClosedLoopOutput {
 pub struct ClosedLoopBuffers<'a> {
     pub position: &'a mut [f64],
     pub velocity: &'a mut [f64],
-    pub measured: &'a mut [f64],
+    /// `None` skips recording the measured position (when it equals the true one).
+    pub measured: Option<&'a mut [f64]>,
     pub command: &'a mut [f64],
     pub friction: &'a mut [f64],
 }
@@ -145,7 +146,7 @@ impl ClosedLoopOutput {
         ClosedLoopBuffers {
             position: &mut self.position,
             velocity: &mut self.velocity,
-            measured: &mut self.measured,
+            measured: Some(&mut self.measured),
             command: &mut self.command,
             friction: &mut self.friction,
         }
@@ -175,11 +176,15 @@ pub fn simulate_generic_into<F: FrictionElement, C: Controller>(
     input.validate()?;
     let d = plant.discretize(input.dt)?;
     let n = input.reference.len();
-    for (name, buf) in [("position", &out.position), ("velocity", &out.velocity), ("measured", &out.measured), ("command", &out.command), ("friction", &out.friction)] {
+    for (name, buf) in [("position", &out.position), ("velocity", &out.velocity), ("command", &out.command), ("friction", &out.friction)] {
         check::same_len(name, buf, "reference", n)?;
     }
+    if let Some(m) = &out.measured {
+        check::same_len("measured", m, "reference", n)?;
+    }
     // Re-slice to exactly n so the indexing below needs no bounds checks.
-    let (pos, vel, meas, cmd, fric) = (&mut out.position[..n], &mut out.velocity[..n], &mut out.measured[..n], &mut out.command[..n], &mut out.friction[..n]);
+    let (pos, vel, cmd, fric) = (&mut out.position[..n], &mut out.velocity[..n], &mut out.command[..n], &mut out.friction[..n]);
+    let mut meas = out.measured.map(|m| &mut m[..n]);
     let reference = &input.reference[..n];
     let mut line = DelayLine::new(d.delay_steps, 0.0);
     // Scalars instead of 2x2 matrix types: the loop body is a handful of FMAs.
@@ -217,7 +222,9 @@ pub fn simulate_generic_into<F: FrictionElement, C: Controller>(
         let f = friction.advance_coupled(&coupling, dt);
         pos[k] = xp;
         vel[k] = xv;
-        meas[k] = y;
+        if let Some(m) = meas.as_deref_mut() {
+            m[k] = y;
+        }
         cmd[k] = u;
         fric[k] = f;
         xp = fma(-gf0, f, free_p);

@@ -184,15 +184,24 @@ fn simulate_closed_loop<'py>(
     let mut ctrl = controller.model.clone();
     // The core writes into zeroed vectors (calloc: pages appear as they are written), which then
     // become the numpy arrays without a copy.
+    // Without noise or quantisation the measured position is the true one: not recorded twice
+    // (the dict then has `measured = None`).
+    let record_measured = input.measurement_noise.is_some() || input.quantization > 0.0;
     let mut out = core::ClosedLoopOutput::zeros(input.reference.len());
-    let buffers = out.buffers();
-    detached(py, || core::simulate_into(&p, fric.as_mut(), &mut ctrl, &input, buffers))?;
-    let names = ["position", "velocity", "measured", "command", "friction"];
-    let arrays = [out.position, out.velocity, out.measured, out.command, out.friction].map(|v| v.into_pyarray(py));
-    let d = PyDict::new(py);
-    for (name, arr) in names.iter().zip(arrays) {
-        d.set_item(name, arr)?;
+    if !record_measured {
+        out.measured = Vec::new();
     }
+    let mut buffers = out.buffers();
+    if !record_measured {
+        buffers.measured = None;
+    }
+    detached(py, || core::simulate_into(&p, fric.as_mut(), &mut ctrl, &input, buffers))?;
+    let d = PyDict::new(py);
+    d.set_item("position", out.position.into_pyarray(py))?;
+    d.set_item("velocity", out.velocity.into_pyarray(py))?;
+    d.set_item("measured", if record_measured { Some(out.measured.into_pyarray(py)) } else { None })?;
+    d.set_item("command", out.command.into_pyarray(py))?;
+    d.set_item("friction", out.friction.into_pyarray(py))?;
     Ok(d)
 }
 
