@@ -134,10 +134,37 @@ def _simulate_many(jobs: Sequence[Mapping[str, Any]]) -> list[ClosedLoopResult]:
     """The single entry point every sweep goes through: a list of closed-loop jobs (keyword
     arguments of :func:`gmsfric.simulate_closed_loop`) -> results, in order.
 
-    Runs them one after the other for now: the Python batch API of issue 6 (``gmsfric.batch``)
-    does not exist yet.  When it lands, this function is the one place to route through it (the
-    jobs differ in controller, friction, feedforward and, for the circle, initial velocity)."""
-    return [simulate_closed_loop(**job) for job in jobs]
+    Jobs that share their reference, step and initial state run as one
+    :func:`gmsfric.batch.simulate_batch` call (all cores, GIL released); their plants,
+    frictions, controllers and feedforwards may differ per run."""
+    from ..batch import simulate_batch
+
+    shared = ("reference", "dt", "initial_position", "initial_velocity", "drive_limit", "quantization")
+    groups: dict[tuple[Any, ...], list[int]] = {}
+    for i, job in enumerate(jobs):
+        unknown = set(job) - set(shared) - {"plant", "friction", "controller", "feedforward"}
+        if unknown:
+            raise InvalidInputError(f"unsupported job keys for a batch: {sorted(unknown)}")
+        key = tuple(id(job.get(k)) if k == "reference" else job.get(k) for k in shared)
+        groups.setdefault(key, []).append(i)
+    results: list[ClosedLoopResult | None] = [None] * len(jobs)
+    for members in groups.values():
+        first = jobs[members[0]]
+        n = np.asarray(first["reference"]).size
+        ffs = [jobs[i].get("feedforward") for i in members]
+        feedforward = None if all(f is None for f in ffs) else np.stack([np.zeros(n) if f is None else np.asarray(f, dtype=float) for f in ffs])
+        batch = simulate_batch(
+            [jobs[i]["plant"] for i in members],
+            [jobs[i].get("friction") for i in members],
+            [jobs[i]["controller"] for i in members],
+            first["reference"],
+            first["dt"],
+            feedforward=feedforward,
+            **{k: first[k] for k in shared[2:] if first.get(k) is not None},
+        )
+        for row, i in enumerate(members):
+            results[i] = batch[row]
+    return [r for r in results if r is not None]
 
 
 def run_compensation(
