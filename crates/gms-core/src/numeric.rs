@@ -1,8 +1,9 @@
-//! `a * b + c` as one fused instruction where the CPU has it (the build targets the host CPU, see
-//! `.cargo/config.toml`), and as two operations otherwise: `f64::mul_add` without hardware FMA is
-//! a slow library call. Used on the per-step dependency chain of the closed loop.
+//! Numerical helpers for the closed loop's per-step dependency chain: a fused multiply-add where
+//! the CPU has one, and a checked polynomial that replaces a division and an exponential.
 
-/// `a * b + c`, fused when the target has FMA.
+/// `a * b + c` as one fused instruction where the CPU has it (the build targets the host CPU, see
+/// `.cargo/config.toml`), as two operations otherwise (`f64::mul_add` without hardware FMA is a
+/// slow library call).
 #[inline(always)]
 pub fn fma(a: f64, b: f64, c: f64) -> f64 {
     if cfg!(target_feature = "fma") {
@@ -12,57 +13,87 @@ pub fn fma(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
-/// `exp(x)` for `x` in a known narrow interval `[lo, hi]` (half-width at most 1/8): `exp(mid)`
-/// times a degree-11 Taylor polynomial of `exp(x - mid)` (truncation error < 3e-20; a few ulp after
-/// rounding). Shorter latency than a general `exp`, which matters on the closed loop's
-/// per-step dependency chain (the GMS slip decay `exp(-c dt / s(v))` with `s` between `fc` and `fs`).
+/// A smooth function on `[0, 1]` replaced by a polynomial of degree at most 15, built by
+/// Chebyshev interpolation and accepted only if it matches the function to `tol` (relative) on a
+/// dense check grid. Evaluated with Estrin's scheme: about five fused multiply-adds deep, instead
+/// of a chain of division and exponential.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ExpOnInterval {
-    lo: f64,
-    hi: f64,
-    mid: f64,
-    exp_mid: f64,
+pub struct UnitIntervalPoly {
+    /// Monomial coefficients in `t = 2 u - 1`, lowest first.
+    coef: [f64; 16],
 }
 
-impl ExpOnInterval {
-    /// Largest half-width accepted.
-    pub const MAX_HALF_WIDTH: f64 = 0.125;
-
-    /// `None` when the interval is too wide (or not finite): use `f64::exp` then.
-    pub fn new(lo: f64, hi: f64) -> Option<Self> {
-        let (lo, hi) = (lo.min(hi), lo.max(hi));
-        let mid = 0.5 * (lo + hi);
-        if !(lo.is_finite() && hi.is_finite()) || hi - mid > Self::MAX_HALF_WIDTH || !mid.exp().is_normal() {
+impl UnitIntervalPoly {
+    /// Fit `f` on `[0, 1]`; `None` if no degree up to 15 reaches `tol` relative accuracy.
+    pub fn fit(f: impl Fn(f64) -> f64, tol: f64) -> Option<Self> {
+        const N: usize = 16;
+        // Chebyshev points of the first kind and the interpolant's Chebyshev coefficients.
+        let angles: Vec<f64> = (0..N).map(|k| std::f64::consts::PI * (k as f64 + 0.5) / N as f64).collect();
+        let values: Vec<f64> = angles.iter().map(|&a| f(0.5 * (a.cos() + 1.0))).collect();
+        if values.iter().any(|v| !v.is_finite()) {
             return None;
         }
-        Some(Self { lo, hi, mid, exp_mid: mid.exp() })
+        let mut cheb = [0.0f64; N];
+        for (j, c) in cheb.iter_mut().enumerate() {
+            // T_j(cos a) = cos(j a), from the exact angle (not acos of the rounded node).
+            let s: f64 = angles.iter().zip(&values).map(|(&a, &v)| v * (j as f64 * a).cos()).sum();
+            *c = s * 2.0 / N as f64;
+        }
+        cheb[0] *= 0.5;
+        // Coefficients at the rounding level of the samples carry no information but would
+        // pollute the monomial form: drop them.
+        let scale = cheb.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        for c in cheb.iter_mut() {
+            if c.abs() < 1e-16 * scale {
+                *c = 0.0;
+            }
+        }
+        // Monomial form: T_0 = 1, T_1 = t, T_{j+1} = 2 t T_j - T_{j-1}.
+        let mut coef = [0.0f64; N];
+        let (mut t_prev, mut t_cur) = ([0.0f64; N], [0.0f64; N]);
+        t_prev[0] = 1.0;
+        t_cur[1] = 1.0;
+        for (i, c) in coef.iter_mut().enumerate() {
+            *c += cheb[0] * t_prev[i] + cheb[1] * t_cur[i];
+        }
+        for cj in cheb.iter().skip(2) {
+            let mut t_next = [0.0f64; N];
+            for i in 0..N {
+                t_next[i] = if i > 0 { 2.0 * t_cur[i - 1] } else { 0.0 } - t_prev[i];
+            }
+            for (c, &tn) in coef.iter_mut().zip(&t_next) {
+                *c += cj * tn;
+            }
+            t_prev = t_cur;
+            t_cur = t_next;
+        }
+        let poly = Self { coef };
+        let worst = (0..=4000)
+            .map(|i| {
+                let u = i as f64 / 4000.0;
+                let exact = f(u);
+                ((poly.eval(u) - exact) / exact).abs()
+            })
+            .fold(0.0f64, f64::max);
+        (worst <= tol).then_some(poly)
     }
 
-    /// Whether `x` lies in the interval.
+    /// The polynomial at `u` (meant for `u` in `[0, 1]`).
     #[inline(always)]
-    pub fn contains(&self, x: f64) -> bool {
-        x >= self.lo && x <= self.hi
-    }
-
-    /// `exp(x)`; `x` must lie in the interval (see [`contains`](Self::contains)).
-    #[inline(always)]
-    pub fn eval(&self, x: f64) -> f64 {
-        let y = x - self.mid;
-        let y2 = y * y;
-        let y4 = y2 * y2;
-        let y8 = y4 * y4;
-        // Estrin's scheme on 1 + y + y^2/2! + ... + y^11/11!.
-        let p01 = 1.0 + y;
-        let p23 = fma(y, 1.0 / 6.0, 0.5);
-        let p45 = fma(y, 1.0 / 120.0, 1.0 / 24.0);
-        let p67 = fma(y, 1.0 / 5040.0, 1.0 / 720.0);
-        let p89 = fma(y, 1.0 / 362_880.0, 1.0 / 40_320.0);
-        let p1011 = fma(y, 1.0 / 39_916_800.0, 1.0 / 3_628_800.0);
-        let q0 = fma(y2, p23, p01);
-        let q1 = fma(y2, p67, p45);
-        let q2 = fma(y2, p1011, p89);
-        let r = fma(y4, q1, q0);
-        self.exp_mid * fma(y8, q2, r)
+    pub fn eval(&self, u: f64) -> f64 {
+        let c = &self.coef;
+        let t = fma(2.0, u, -1.0);
+        let t2 = t * t;
+        let t4 = t2 * t2;
+        let t8 = t4 * t4;
+        let p = |i: usize| fma(c[i + 1], t, c[i]);
+        let q0 = fma(p(2), t2, p(0));
+        let q1 = fma(p(6), t2, p(4));
+        let q2 = fma(p(10), t2, p(8));
+        let q3 = fma(p(14), t2, p(12));
+        let r0 = fma(q1, t4, q0);
+        let r1 = fma(q3, t4, q2);
+        fma(r1, t8, r0)
     }
 }
 
@@ -71,18 +102,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn interval_exp_matches_libm() {
-        for (lo, hi) in [(-1.217, -1.058), (-0.25, 0.0), (-30.1, -29.9), (2.0, 2.2)] {
-            let e = ExpOnInterval::new(lo, hi).expect("narrow interval");
-            let mut worst: f64 = 0.0;
-            for i in 0..=10_000 {
-                let x = lo + (hi - lo) * i as f64 / 10_000.0;
-                assert!(e.contains(x));
-                worst = worst.max(((e.eval(x) - x.exp()) / x.exp()).abs());
-            }
-            assert!(worst < 8e-16, "[{lo}, {hi}]: worst relative error {worst}"); // a few ulp
-        }
-        assert!(ExpOnInterval::new(-1.0, 0.0).is_none());
-        assert!(ExpOnInterval::new(f64::NEG_INFINITY, 0.0).is_none());
+    fn decay_of_the_paper_gms_as_a_polynomial_of_the_stribeck_exponential() {
+        // exp(-c dt / s) with s = fc + (fs - fc) E, E in [0, 1] (paper Table 1, c = 1/Vs, dt = 1e-4).
+        let (fc, fs, c, dt) = (0.1826, 0.210, 1.0 / 0.45e-3, 1e-4);
+        let g = |e: f64| (-c * dt / (fc + (fs - fc) * e)).exp();
+        let p = UnitIntervalPoly::fit(g, 4e-15).expect("smooth enough");
+        let worst = (0..=100_000).map(|i| i as f64 / 100_000.0).map(|e| ((p.eval(e) - g(e)) / g(e)).abs()).fold(0.0, f64::max);
+        assert!(worst < 4e-15, "worst relative error {worst}");
+        // A function with a singularity next to the interval is refused.
+        assert!(UnitIntervalPoly::fit(|e| 1.0 / (e + 1e-3), 4e-15).is_none());
     }
 }

@@ -70,6 +70,25 @@ impl Stribeck {
         crate::numeric::fma(self.fs - self.fc, (-p).exp(), self.fc)
     }
 
+    /// `(s(v), E)` with `s = fc + (fs - fc) E` and `E = exp(-|v/vs|^delta)` (0 where it cannot
+    /// change `s`).
+    #[inline(always)]
+    pub fn eval_with_exp(&self, v: f64) -> (f64, f64) {
+        let r = (v * self.inv_vs).abs();
+        let p = if self.delta == 1.0 {
+            r
+        } else if self.delta == 2.0 {
+            r * r
+        } else {
+            r.powf(self.delta)
+        };
+        if p > self.p_cut {
+            return (self.fc, 0.0);
+        }
+        let e = (-p).exp();
+        (crate::numeric::fma(self.fs - self.fc, e, self.fc), e)
+    }
+
     /// The largest value of `s` (the level a sticking contact can hold).
     pub fn max_level(&self) -> f64 {
         self.fs.max(self.fc)
