@@ -228,7 +228,7 @@ def replay_paper(settings: ReplaySettings = ReplaySettings(), *, progress: bool 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = subparsers.add_parser("paper", help="replay the paper's identification on the virtual rig (true vs identified)", description=__doc__)
-    p.add_argument("--out", metavar="DIR", help="save the figures (Figs. 3-7, 10-13 equivalents) in DIR")
+    p.add_argument("--plot", "--out", dest="out", metavar="DIR", help="save the figures (Figs. 3-7, 10-13 equivalents) in DIR")
     p.add_argument("--json", metavar="OUT", help="write the tables as JSON")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
