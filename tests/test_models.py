@@ -96,3 +96,17 @@ def test_velocity_input_equals_position_input():
     v = 1e-4 * np.cos(2 * np.pi * 3 * t)
     x = np.concatenate(([0.0], np.cumsum(v[1:] * np.diff(t))))
     np.testing.assert_allclose(g.simulate_friction(m, t, velocity=v), g.simulate_friction(m, t, x))
+
+
+def test_one_reading_of_table3_across_the_package():
+    from gmsfric import glitch, identify
+
+    assert identify.Table3Reading is presets.Table3Reading
+    reading = presets.Table3Reading()
+    assert glitch.PAPER_TABLE3 == {"static": reading.static, "gms": reading.gms}
+    revised = glitch.table3_plant("static")
+    assert (revised.a, revised.b, revised.c) == pytest.approx((0.01985, 2.40, 176.8))
+    alt = presets.Table3Reading.static_unchanged()
+    assert alt.static[1] == 168.40 and alt.gms[1] == 2.40
+    with pytest.raises(g.InvalidInputError, match="`model`"):
+        reading.plant("lugre")

@@ -27,6 +27,7 @@ Readings (default ``PaperReading()``):
 * The DSP output (+-10 V) "is amplified by a factor of 10": the drive input of eq. 1 is limited to
   ``drive_limit = 100`` V.
 * No controller is given: :func:`paper_pid` is ours (documented there).
+* Table 3 (revised plants) is garbled: :class:`Table3Reading` holds the reading used everywhere.
 """
 
 from __future__ import annotations
@@ -104,6 +105,37 @@ def paper_pid(reading: PaperReading = PaperReading()) -> PID:
     return PID(kp=5.0e5, ki=2.5e6, kd=1.0e3, tf=5e-4, u_min=-lim, u_max=lim)
 
 
+@dataclass(frozen=True)
+class Table3Reading:
+    """How the garbled Table 3 (the revised plants of Section 4.1) is read, in the paper's units:
+    ``(A', B', C')`` per friction model in mm/(V s^2), 1/s, 1/s^2.
+
+    The extracted text is ``A' 19.85 | A 19.85 180.40 | B' 2.40 | B 168.40 168.40 176.80 |
+    C' 176.80 | C 176.80 176.80``: ten numbers for twelve cells (rows A', A, B', B, C', C; columns
+    static model, GMS model). Default: the rows carry (static, GMS) with one original A and one
+    original B lost, so the static model is revised to B' = 2.40 (the text says the static model's
+    FRF "clearly" differed and was revised) and the GMS model to A' = 180.40; C is unchanged.
+    :meth:`static_unchanged` is the other reading that fits the count: the lost cells are the
+    static model's A', B' (unchanged) and the GMS column holds A' = 180.40, B' = 2.40.
+    """
+
+    static: tuple[float, float, float] = (19.85, 2.40, 176.80)
+    gms: tuple[float, float, float] = (180.40, 168.40, 176.80)
+
+    @classmethod
+    def static_unchanged(cls) -> "Table3Reading":
+        return cls(static=(19.85, 168.40, 176.80), gms=(180.40, 2.40, 176.80))
+
+    def plant(self, model: str, reading: PaperReading = PaperReading()) -> Plant:
+        """The revised plant for ``model`` (``"static"`` or ``"gms"``) in SI, with eq. 1's delay."""
+        if model not in ("static", "gms"):
+            from .errors import InvalidInputError
+
+            raise InvalidInputError(f"`model` must be 'static' or 'gms', got {model!r}")
+        a, b, c = self.static if model == "static" else self.gms
+        return Plant(a=a * 1e-3, b=b, c=c, delay=PAPER_EQ1["delay"], force_gain=reading.force_per_volt)
+
+
 # --- EMPS benchmark (Janot, Gautier, Brunot 2019) ------------------------------------------------
 
 EMPS_GTAU = 35.15
@@ -131,6 +163,7 @@ def emps_controller() -> Cascade:
 
 __all__ = [
     "PaperReading",
+    "Table3Reading",
     "paper_stribeck",
     "paper_static_friction",
     "paper_gms",

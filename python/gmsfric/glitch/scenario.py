@@ -37,7 +37,8 @@ from ..system import PID, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
 from .metrics import GlitchReport, glitch_metrics
 
 #: Table 3 as read in docs/glitch.md: (A' mm/(V s^2), B' 1/s, C' 1/s^2) per friction model.
-PAPER_TABLE3 = {"static": (19.85, 2.40, 176.80), "gms": (180.40, 168.40, 176.80)}
+#: Table 3's revised (A', B', C') per model, as read in :class:`gmsfric.presets.Table3Reading`.
+PAPER_TABLE3 = {"static": presets.Table3Reading().static, "gms": presets.Table3Reading().gms}
 
 #: Default gains of the glitch scenario (paper_pid / 10), V/m, V/(m s), V s/m, s.
 DEFAULT_GAINS = {"kp": 5.0e4, "ki": 2.5e5, "kd": 1.0e2, "tf": 5e-4}
@@ -90,13 +91,10 @@ def scenario_controller(
     return PID(kp=kp, ki=ki, kd=kd, tf=tf, u_min=-lim, u_max=lim)
 
 
-def table3_plant(model: str, reading: presets.PaperReading = presets.PaperReading()) -> Plant:
-    """The revised plant of Table 3 for ``model`` (``"static"`` or ``"gms"``), read as
-    ``static: A'=19.85, B'=2.40, C'=176.80``; ``gms: A'=180.40, B'=168.40, C'=176.80``."""
-    if model not in PAPER_TABLE3:
-        raise InvalidInputError(f"`model` must be 'static' or 'gms', got {model!r}")
-    a, b, c = PAPER_TABLE3[model]
-    return Plant(a=a * 1e-3, b=b, c=c, delay=presets.PAPER_EQ1["delay"], force_gain=reading.force_per_volt)
+def table3_plant(model: str, reading: presets.PaperReading = presets.PaperReading(), table3: presets.Table3Reading = presets.Table3Reading()) -> Plant:
+    """The revised plant of Table 3 for ``model`` (``"static"`` or ``"gms"``) under ``table3``
+    (default ``static: A'=19.85, B'=2.40, C'=176.80``; ``gms: A'=180.40, B'=168.40, C'=176.80``)."""
+    return table3.plant(model, reading)
 
 
 def sinusoid_reference(amplitude: float, frequency: float, dt: float, periods: float = 1.0, phase: float = 0.0) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:

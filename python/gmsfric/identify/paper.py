@@ -27,25 +27,11 @@ from .frf import estimate_frf, fit_plant
 from .presliding import fit_presliding
 from .results import IdentificationResult, _jsonable
 from .revision import revise_plant
+from ..presets import Table3Reading
 from .rig import VirtualRig
 from .static_map import fit_static_map_from_run
 
 PAPER_VELOCITIES_MM_S = (0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.09, 0.1, 0.2, 0.3, 0.4, 0.5, 0.8, 1, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 25, 30)
-
-
-@dataclass(frozen=True)
-class Table3Reading:
-    """Our reading of the garbled Table 3 (revised A', B', C' in mm/(V s^2), 1/s, 1/s^2).
-
-    The extracted text holds 10 numbers for 12 cells.  Read as rows A, A', B, B', C, C' and
-    columns (static model, GMS model): the originals are eq. 1 in both columns; the GMS column
-    revises A' = 180.40 and B' = 2.40 and keeps C' = 176.80; the two missing cells are the static
-    model's A' and B', taken as unchanged (19.85, 168.40) - consistent with the text, where the
-    static friction barely changes the FRF.
-    """
-
-    static: tuple[float, float, float] = (19.85, 168.40, 176.80)
-    gms: tuple[float, float, float] = (180.40, 2.40, 176.80)
 
 
 @dataclass(frozen=True)
