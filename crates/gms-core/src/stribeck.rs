@@ -52,26 +52,14 @@ impl Stribeck {
         Self::new(level, level, 1.0, 1.0)
     }
 
-    /// `s(v)`. The common shapes delta = 1 and 2 avoid `powf`.
+    /// `s(v)`.
     #[inline(always)]
     pub fn eval(&self, v: f64) -> f64 {
-        let r = (v * self.inv_vs).abs();
-        let p = if self.delta == 1.0 {
-            r
-        } else if self.delta == 2.0 {
-            r * r
-        } else {
-            r.powf(self.delta)
-        };
-        if p > self.p_cut {
-            // exp(-p) cannot change the sum: skip it (the result is bit-identical).
-            return self.fc;
-        }
-        crate::numeric::fma(self.fs - self.fc, (-p).exp(), self.fc)
+        self.eval_with_exp(v).0
     }
 
     /// `(s(v), E)` with `s = fc + (fs - fc) E` and `E = exp(-|v/vs|^delta)` (0 where it cannot
-    /// change `s`).
+    /// change `s`). The common shapes delta = 1 and 2 avoid `powf`.
     #[inline(always)]
     pub fn eval_with_exp(&self, v: f64) -> (f64, f64) {
         let r = (v * self.inv_vs).abs();

@@ -219,6 +219,17 @@ def reversal_distance(q: Array, qd: Array, v_eps: float) -> Array:
     return out
 
 
+def _attach_position_periodogram(f: "Finding", s: Signals, r: Array, *, odd: bool) -> None:
+    """Add the position-domain periodogram of the residual profile (and its dominant period) to
+    finding ``f``."""
+    grid, prof = position_profile(s, r, odd=odd)
+    if prof is not None:
+        fr, pw = position_periodogram(grid, prof)
+        f.curve.update(spatial_freq=fr, periodogram=pw)
+        if fr.size:
+            f.detail["dominant_period_m"] = float(1.0 / fr[np.argmax(pw)])
+
+
 def analyse(s: Signals, r: Array, y_hat: Array, *, seed: int = 0, variables: list[str] | None = None) -> list[Finding]:
     """Run every residual test on decimated rows of one run.
 
@@ -247,21 +258,11 @@ def analyse(s: Signals, r: Array, y_hat: Array, *, seed: int = 0, variables: lis
         out.append(binned_test("velocity", R["qd"], r, rng=rng))
     if "position" in want:
         f = binned_test("position", R["q"], r, rng=rng)
-        grid, prof = position_profile(s, r, odd=False)
-        if prof is not None:
-            fr, pw = position_periodogram(grid, prof)
-            f.curve.update(spatial_freq=fr, periodogram=pw)
-            if fr.size:
-                f.detail["dominant_period_m"] = float(1.0 / fr[np.argmax(pw)])
+        _attach_position_periodogram(f, s, r, odd=False)
         out.append(f)
     if "position_odd" in want and moving.sum() > 50:
         f = binned_test("position_odd", R["q"][moving], r[moving], rng=rng, odd_sign=sg[moving])
-        grid, prof = position_profile(s, r, odd=True)
-        if prof is not None:
-            fr, pw = position_periodogram(grid, prof)
-            f.curve.update(spatial_freq=fr, periodogram=pw)
-            if fr.size:
-                f.detail["dominant_period_m"] = float(1.0 / fr[np.argmax(pw)])
+        _attach_position_periodogram(f, s, r, odd=True)
         out.append(f)
     chunk = max(5, int(round(0.25 / (s.dt * s.dec))))
     if "time" in want and moving.sum() > 50:
