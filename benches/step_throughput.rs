@@ -55,14 +55,14 @@ fn closed_loop(c: &mut Criterion) {
     g.throughput(Throughput::Elements(n as u64));
     g.bench_function("gms4_paper", |b| {
         let mut f = reference::paper_gms();
-        let mut ctrl = reference::paper_pid(DT);
+        let mut ctrl = reference::paper_pid();
         let input = ClosedLoopInput::new(&r, DT);
         b.iter(|| simulate_generic(&plant, &mut f, &mut ctrl, black_box(&input)).unwrap())
     });
     for blocks in [1usize, 2, 4, 8, 16, 32, 64] {
         g.bench_with_input(BenchmarkId::new("gms_blocks", blocks), &blocks, |b, &nb| {
             let mut f = reference::gms_with_blocks(nb);
-            let mut ctrl = reference::paper_pid(DT);
+            let mut ctrl = reference::paper_pid();
             let input = ClosedLoopInput::new(&r, DT);
             b.iter(|| simulate_generic(&plant, &mut f, &mut ctrl, black_box(&input)).unwrap())
         });
@@ -75,7 +75,7 @@ fn closed_loop(c: &mut Criterion) {
         g.throughput(Throughput::Elements(steps as u64));
         g.bench_with_input(BenchmarkId::new("gms4_paper", steps), &steps, |b, _| {
             let mut f = reference::paper_gms();
-            let mut ctrl = reference::paper_pid(DT);
+            let mut ctrl = reference::paper_pid();
             let input = ClosedLoopInput::new(&r, DT);
             b.iter(|| simulate_generic(&plant, &mut f, &mut ctrl, black_box(&input)).unwrap())
         });

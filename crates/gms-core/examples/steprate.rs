@@ -13,11 +13,11 @@ fn main() {
     let mut out = ClosedLoopOutput::zeros(n);
     let mut best = [f64::INFINITY; 3];
     for _ in 0..5 {
-        let mut ctrl = reference::paper_pid(dt);
+        let mut ctrl = reference::paper_pid();
         let t0 = Instant::now();
         simulate_generic_into(&plant, &mut NoFriction, &mut ctrl, &input, out.buffers()).unwrap();
         best[0] = best[0].min(t0.elapsed().as_secs_f64());
-        let mut ctrl = reference::paper_pid(dt);
+        let mut ctrl = reference::paper_pid();
         let mut g = reference::paper_gms();
         let t0 = Instant::now();
         simulate_generic_into(&plant, &mut g, &mut ctrl, &input, out.buffers()).unwrap();

@@ -1,47 +1,42 @@
 //! Many closed-loop runs at once (parameter sweeps, Monte Carlo over identified uncertainties,
 //! controller-gain sweeps), spread over all cores with rayon.
 //!
-//! Each [`Job`] is a complete run: plant, optional friction model, controller and its inputs
-//! (arrays borrowed, so a shared reference is not copied per run). Runs are independent: every
+//! Each [`Job`] is a complete run: the axis (plant, friction, effects), an optional controller
+//! and its inputs (arrays borrowed, so a shared reference is not copied per run). Runs are independent: every
 //! job's models are cloned and reset before it runs, so results equal those of
 //! [`crate::simulate`] bit for bit, whatever the number of threads or the order in which rayon
 //! schedules the runs.
 //!
 //! Progress and cancellation are lock-free: the caller may pass an [`AtomicUsize`] that counts
 //! finished runs (the Python binding polls it while the GIL is released) and an [`AtomicBool`]
-//! that, once set, makes runs that have not started yet return at once.
+//! that, once set, stops running runs within a few thousand steps and makes runs that have not
+//! started return at once ([`CoreError::Interrupted`]).
 
-use crate::closed_loop::{simulate, simulate_into, ClosedLoopBuffers, ClosedLoopInput, ClosedLoopOutput};
+use crate::closed_loop::{Axis, ClosedLoopBuffers, ClosedLoopInput, ClosedLoopOutput, Record};
 use crate::control::ControllerModel;
-use crate::error::{CoreError, Result};
+use crate::error::{try_zeroed, CoreError, Result};
 use crate::friction::FrictionModel;
-use crate::plant::Plant;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// One run of a batch.
 #[derive(Debug, Clone)]
 pub struct Job<'a> {
-    pub plant: Plant,
-    /// `None`: the frictionless axis.
-    pub friction: Option<FrictionModel>,
-    pub controller: ControllerModel,
+    pub axis: Axis,
+    /// `None`: open loop (the input's feedforward is the command).
+    pub controller: Option<ControllerModel>,
     pub input: ClosedLoopInput<'a>,
 }
 
 impl Job<'_> {
     /// Run this job from the initial state of its models (the job itself is not modified).
     pub fn run(&self) -> Result<ClosedLoopOutput> {
-        let mut friction = self.friction.clone();
-        let mut controller = self.controller.clone();
-        simulate(&self.plant, friction.as_mut(), &mut controller, &self.input)
+        self.axis.simulate(self.controller.as_ref(), &self.input)
     }
 
     /// Run this job writing into caller-owned buffers.
     pub fn run_into(&self, out: ClosedLoopBuffers<'_>) -> Result<()> {
-        let mut friction = self.friction.clone();
-        let mut controller = self.controller.clone();
-        simulate_into(&self.plant, friction.as_mut(), &mut controller, &self.input, out)
+        self.axis.simulate_into(self.controller.as_ref(), &self.input, out)
     }
 }
 
@@ -52,14 +47,14 @@ pub struct BatchOptions<'a> {
     pub threads: Option<usize>,
     /// Incremented once per finished run (successful or not).
     pub progress: Option<&'a AtomicUsize>,
-    /// When set, runs that have not started return [`cancelled`] instead of running.
+    /// When set, running runs stop and runs that have not started return
+    /// [`CoreError::Interrupted`].
     pub cancel: Option<&'a AtomicBool>,
 }
 
-/// The error a run reports when the batch was cancelled before it started.
-pub fn cancelled() -> CoreError {
-    CoreError::InvalidParameter { name: "batch", reason: "cancelled before this run started".into() }
-}
+/// Most worker threads a batch may ask for (more than any machine has cores: the request is
+/// a mistake, and spawning that many threads would take minutes).
+pub const MAX_THREADS: usize = 1024;
 
 /// A failed run of a batch: its index and its error.
 #[derive(Debug, Clone, PartialEq)]
@@ -76,23 +71,78 @@ impl std::fmt::Display for BatchError {
 
 impl std::error::Error for BatchError {}
 
-/// Stacked outputs of a batch: each array is `n_runs x n_samples`, row-major (run `i` occupies
-/// `[i * n_samples, (i + 1) * n_samples)`), with the meaning of [`ClosedLoopOutput`]'s fields.
+/// Stacked outputs of a batch: each recorded array is `n_runs x n_samples`, row-major (run `i`
+/// occupies `[i * n_samples, (i + 1) * n_samples)`), with the meaning of
+/// [`ClosedLoopOutput`]'s fields; outputs not recorded are empty.
 #[derive(Debug, Clone, Default)]
 pub struct BatchOutput {
     pub n_runs: usize,
+    /// Recorded samples per run.
     pub n_samples: usize,
     pub position: Vec<f64>,
     pub velocity: Vec<f64>,
     pub measured: Vec<f64>,
     pub command: Vec<f64>,
     pub friction: Vec<f64>,
+    pub error: Vec<f64>,
 }
 
 impl BatchOutput {
+    /// Zeroed arrays for the outputs `record` asks for, allocated fallibly: a size that cannot
+    /// be had is [`CoreError::TooLarge`] (a `MemoryError` in Python), not an abort.
+    pub fn allocate(n_runs: usize, n_samples: usize, record: &Record) -> Result<Self> {
+        let total = n_runs.checked_mul(n_samples).ok_or(CoreError::TooLarge {
+            name: "outputs",
+            requested: n_runs as f64 * n_samples as f64,
+            limit: usize::MAX as f64,
+            what: "samples",
+            reason: "runs x samples overflows",
+        })?;
+        let alloc = |on: bool, name| if on { try_zeroed(name, total) } else { Ok(Vec::new()) };
+        Ok(Self {
+            n_runs,
+            n_samples,
+            position: alloc(record.position, "position")?,
+            velocity: alloc(record.velocity, "velocity")?,
+            measured: alloc(record.measured, "measured")?,
+            command: alloc(record.command, "command")?,
+            friction: alloc(record.friction, "friction")?,
+            error: alloc(record.error, "error")?,
+        })
+    }
+
     /// Row `i` of `field` (one of the arrays of this struct).
     pub fn row<'s>(&self, field: &'s [f64], i: usize) -> &'s [f64] {
         &field[i * self.n_samples..(i + 1) * self.n_samples]
+    }
+
+    /// Mutable row views of every recorded array, run by run.
+    fn row_buffers(&mut self, every: usize) -> Vec<ClosedLoopBuffers<'_>> {
+        let (n_runs, m) = (self.n_runs, self.n_samples);
+        fn split(v: &mut [f64], n_runs: usize, m: usize) -> Vec<Option<&mut [f64]>> {
+            if v.is_empty() || m == 0 {
+                (0..n_runs).map(|_| None).collect()
+            } else {
+                v.chunks_mut(m).map(Some).collect()
+            }
+        }
+        let mut pos = split(&mut self.position, n_runs, m).into_iter();
+        let mut vel = split(&mut self.velocity, n_runs, m).into_iter();
+        let mut meas = split(&mut self.measured, n_runs, m).into_iter();
+        let mut cmd = split(&mut self.command, n_runs, m).into_iter();
+        let mut fric = split(&mut self.friction, n_runs, m).into_iter();
+        let mut err = split(&mut self.error, n_runs, m).into_iter();
+        (0..n_runs)
+            .map(|_| ClosedLoopBuffers {
+                position: pos.next().flatten(),
+                velocity: vel.next().flatten(),
+                measured: meas.next().flatten(),
+                command: cmd.next().flatten(),
+                friction: fric.next().flatten(),
+                error: err.next().flatten(),
+                every,
+            })
+            .collect()
     }
 }
 
@@ -101,6 +151,7 @@ fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Res
     match threads {
         None => Ok(f()),
         Some(0) => Err(CoreError::NotPositive { name: "threads", value: 0.0 }),
+        Some(n) if n > MAX_THREADS => Err(CoreError::InvalidParameter { name: "threads", reason: format!("{n} threads; at most {MAX_THREADS}") }),
         Some(n) => {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
@@ -114,7 +165,7 @@ fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Res
 /// Run `f` under the options' cancel flag and progress counter.
 fn track<T>(opts: &BatchOptions<'_>, f: impl FnOnce() -> Result<T>) -> Result<T> {
     if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-        return Err(cancelled());
+        return Err(CoreError::Interrupted);
     }
     let out = f();
     if let Some(p) = opts.progress {
@@ -123,27 +174,32 @@ fn track<T>(opts: &BatchOptions<'_>, f: impl FnOnce() -> Result<T>) -> Result<T>
     out
 }
 
-/// Run one job under the options' cancel flag and progress counter.
-fn run_tracked(job: &Job<'_>, opts: &BatchOptions<'_>) -> Result<ClosedLoopOutput> {
-    track(opts, || job.run())
+/// The job's input with the batch's cancel flag (unless the job has its own).
+fn input_of<'a>(job: &Job<'a>, opts: &BatchOptions<'a>) -> ClosedLoopInput<'a> {
+    let mut input = job.input;
+    input.cancel = input.cancel.or(opts.cancel);
+    input
 }
 
 /// Run every job in parallel; one result per job, in the order of `jobs`. Runs of different
-/// lengths are fine. A failing run does not stop the others; setting `opts.cancel` skips the
-/// runs that have not started yet (they return [`cancelled`]).
+/// lengths are fine. A failing run does not stop the others; setting `opts.cancel` stops them.
 pub fn simulate_batch(jobs: &[Job<'_>], opts: &BatchOptions<'_>) -> Result<Vec<Result<ClosedLoopOutput>>> {
-    in_pool(opts.threads, || jobs.par_iter().map(|job| run_tracked(job, opts)).collect())
+    in_pool(opts.threads, || {
+        jobs.par_iter()
+            .map(|job| track(opts, || job.axis.simulate(job.controller.as_ref(), &input_of(job, opts))))
+            .collect()
+    })
 }
 
-/// Run every job in parallel and stack the outputs into `n_runs x n_samples` arrays. All runs
-/// must have the same number of samples. Returns the first failing run (lowest index) otherwise;
-/// after a failure, runs with a higher index that have not started yet are skipped (runs below
-/// it still run, so the reported run is the lowest failing index whatever the scheduling).
-pub fn simulate_batch_stacked(jobs: &[Job<'_>], opts: &BatchOptions<'_>) -> std::result::Result<BatchOutput, BatchError> {
-    let n_runs = jobs.len();
-    let n = jobs.first().map_or(0, |j| j.input.reference.len());
+/// Run every job in parallel, writing the outputs `record` asks for into stacked
+/// `n_runs x samples` arrays. All runs must have the same number of samples. Returns the first
+/// failing run (lowest index) otherwise; after a failure, runs with a higher index that have not
+/// started yet are skipped (runs below it still run, so the reported run is the lowest failing
+/// index whatever the scheduling).
+pub fn simulate_batch_stacked(jobs: &[Job<'_>], record: &Record, opts: &BatchOptions<'_>) -> std::result::Result<BatchOutput, BatchError> {
+    let n = jobs.first().map_or(0, |j| j.input.len());
     for (i, job) in jobs.iter().enumerate() {
-        let got = job.input.reference.len();
+        let got = job.input.len();
         if got == 0 {
             return Err(BatchError { run: i, error: CoreError::Empty { name: "reference", min: 1 } });
         }
@@ -154,41 +210,28 @@ pub fn simulate_batch_stacked(jobs: &[Job<'_>], opts: &BatchOptions<'_>) -> std:
             });
         }
     }
-    let total = n_runs * n;
-    let mut out = BatchOutput {
-        n_runs,
-        n_samples: n,
-        // Zeroed allocations are lazily mapped: each page is touched first by the worker that
-        // writes its row.
-        position: vec![0.0; total],
-        velocity: vec![0.0; total],
-        measured: vec![0.0; total],
-        command: vec![0.0; total],
-        friction: vec![0.0; total],
-    };
-    if n_runs == 0 {
-        return Ok(out);
+    let mut out = BatchOutput::allocate(jobs.len(), record.samples(n), record).map_err(|error| BatchError { run: 0, error })?;
+    simulate_batch_into(jobs, record, &mut out, opts)?;
+    Ok(out)
+}
+
+/// [`simulate_batch_stacked`] into arrays the caller allocated with [`BatchOutput::allocate`].
+pub fn simulate_batch_into(jobs: &[Job<'_>], record: &Record, out: &mut BatchOutput, opts: &BatchOptions<'_>) -> std::result::Result<(), BatchError> {
+    if jobs.is_empty() {
+        return Ok(());
     }
     let first_failure = AtomicUsize::new(usize::MAX);
-    let rows: Vec<_> = out
-        .position
-        .chunks_mut(n)
-        .zip(out.velocity.chunks_mut(n))
-        .zip(out.measured.chunks_mut(n))
-        .zip(out.command.chunks_mut(n))
-        .zip(out.friction.chunks_mut(n))
-        .collect();
+    let rows = out.row_buffers(record.every.max(1));
     let results: Vec<Result<()>> = in_pool(opts.threads, || {
         rows.into_par_iter()
             .zip(jobs.par_iter())
             .enumerate()
-            .map(|(i, (((((p, v), m), c), f), job))| {
+            .map(|(i, (buffers, job))| {
                 if i > first_failure.load(Ordering::Relaxed) {
-                    return Err(cancelled());
+                    return Err(CoreError::Interrupted);
                 }
                 // Each run writes straight into its rows of the stacked arrays.
-                let buffers = ClosedLoopBuffers { position: p, velocity: v, measured: Some(m), command: c, friction: f };
-                track(opts, || job.run_into(buffers)).inspect_err(|_| {
+                track(opts, || job.axis.simulate_into(job.controller.as_ref(), &input_of(job, opts), buffers)).inspect_err(|_| {
                     first_failure.fetch_min(i, Ordering::Relaxed);
                 })
             })
@@ -197,14 +240,13 @@ pub fn simulate_batch_stacked(jobs: &[Job<'_>], opts: &BatchOptions<'_>) -> std:
     .map_err(|error| BatchError { run: 0, error })?;
     // Report the lowest-index real failure; skipped runs are a consequence, not a cause (they
     // are reported only when the caller cancelled the batch).
-    let cancel_err = cancelled();
-    let first_real = results.iter().position(|r| matches!(r, Err(e) if *e != cancel_err));
+    let first_real = results.iter().position(|r| matches!(r, Err(e) if *e != CoreError::Interrupted));
     let first_any = results.iter().position(|r| r.is_err());
     if let Some(i) = first_real.or(first_any) {
         let error = results.into_iter().nth(i).and_then(|r| r.err()).expect("an error at i");
         return Err(BatchError { run: i, error });
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Friction-only simulation of many models along position trajectories sampled at the shared
@@ -223,7 +265,7 @@ pub fn simulate_position_batch(
             error: CoreError::LengthMismatch { name: "position rows", other: "models", expected: models.len(), got: positions.len() },
         });
     }
-    let mut out = vec![0.0; models.len() * n];
+    let mut out = try_zeroed("forces", models.len().saturating_mul(n)).map_err(|error| BatchError { run: 0, error })?;
     if models.is_empty() || n == 0 {
         crate::error::check::increasing("t", t, 2).map_err(|error| BatchError { run: 0, error })?;
         return Ok(out);
@@ -234,7 +276,7 @@ pub fn simulate_position_batch(
             .enumerate()
             .map(|(i, (row, model))| {
                 if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                    return Err(cancelled());
+                    return Err(CoreError::Interrupted);
                 }
                 let x = positions[if positions.len() == 1 { 0 } else { i }];
                 let mut m = model.clone();

@@ -1,14 +1,45 @@
 //! Discrete controllers. The closed-loop simulator is generic over [`Controller`], so a new
-//! controller plugs in by implementing one method; feedforward terms enter as sample arrays.
+//! controller plugs in by implementing three methods; feedforward terms enter as sample arrays.
+//!
+//! Controllers are built from their gains alone and learn the sample time from the simulation
+//! ([`Controller::prepare`]): the step is given once, to the run.
 
 use crate::error::{check, CoreError, Result};
 
 /// A discrete controller running at the simulation step.
 pub trait Controller {
+    /// Set the sample time before a run (coefficients that depend on it are computed here, and
+    /// checked: a filter above the Nyquist frequency, an observer history that cannot fit).
+    fn prepare(&mut self, dt: f64) -> Result<()>;
     /// Controller output for sample `k` from the reference and the measured position.
     fn update(&mut self, reference: f64, measured: f64) -> f64;
     /// Back to the initial state.
     fn reset(&mut self);
+}
+
+fn check_limits(u_min: f64, u_max: f64) -> Result<()> {
+    if u_min.is_nan() || u_max.is_nan() || u_min >= u_max {
+        return Err(CoreError::InvalidParameter {
+            name: "u_min",
+            reason: format!("output limits must satisfy u_min < u_max, got [{u_min}, {u_max}]"),
+        });
+    }
+    Ok(())
+}
+
+/// No controller: the drive input is the run's feedforward (the command) alone (open loop).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct OpenLoop;
+
+impl Controller for OpenLoop {
+    fn prepare(&mut self, _dt: f64) -> Result<()> {
+        Ok(())
+    }
+    #[inline(always)]
+    fn update(&mut self, _reference: f64, _measured: f64) -> f64 {
+        0.0
+    }
+    fn reset(&mut self) {}
 }
 
 /// Parallel PID `u = kp e + ki int(e) + kd de/dt` on the error `e = r - y`, with an optional
@@ -23,35 +54,41 @@ pub struct Pid {
     pub tf: f64,
     pub u_min: f64,
     pub u_max: f64,
-    pub dt: f64,
     integral: f64,
     deriv: f64,
     prev_error: Option<f64>,
-    /// Derivative filter coefficients `tf / (tf + dt)` and `kd / (tf + dt)`, and `ki dt`.
+    /// Derivative filter coefficients `tf / (tf + dt)` and `kd / (tf + dt)`, and `ki dt`
+    /// (set by `prepare`).
     d_keep: f64,
     d_gain: f64,
     ki_dt: f64,
 }
 
 impl Pid {
-    pub fn new(kp: f64, ki: f64, kd: f64, tf: f64, u_min: f64, u_max: f64, dt: f64) -> Result<Self> {
+    pub fn new(kp: f64, ki: f64, kd: f64, tf: f64, u_min: f64, u_max: f64) -> Result<Self> {
         check::finite("kp", kp)?;
         check::finite("ki", ki)?;
         check::finite("kd", kd)?;
         check::non_negative("tf", tf)?;
-        check::positive("dt", dt)?;
-        if u_min.is_nan() || u_max.is_nan() || u_min >= u_max {
-            return Err(CoreError::InvalidParameter {
-                name: "u_min",
-                reason: format!("output limits must satisfy u_min < u_max, got [{u_min}, {u_max}]"),
-            });
-        }
-        let inv = 1.0 / (tf + dt);
-        Ok(Self { kp, ki, kd, tf, u_min, u_max, dt, integral: 0.0, deriv: 0.0, prev_error: None, d_keep: tf * inv, d_gain: kd * inv, ki_dt: ki * dt })
+        check_limits(u_min, u_max)?;
+        Ok(Self { kp, ki, kd, tf, u_min, u_max, integral: 0.0, deriv: 0.0, prev_error: None, d_keep: 0.0, d_gain: 0.0, ki_dt: 0.0 })
     }
 }
 
 impl Controller for Pid {
+    fn prepare(&mut self, dt: f64) -> Result<()> {
+        check::step("dt", dt)?;
+        let inv = 1.0 / (self.tf + dt);
+        self.d_keep = self.tf * inv;
+        self.d_gain = self.kd * inv;
+        self.ki_dt = self.ki * dt;
+        for (name, v) in [("kd", self.d_gain), ("ki", self.ki_dt)] {
+            if !v.is_finite() {
+                return Err(CoreError::InvalidParameter { name, reason: format!("the gain overflows at a step of {dt} s") });
+            }
+        }
+        Ok(())
+    }
     #[inline]
     fn update(&mut self, reference: f64, measured: f64) -> f64 {
         let e = reference - measured;
@@ -84,33 +121,31 @@ pub struct Cascade {
     pub kv: f64,
     pub u_min: f64,
     pub u_max: f64,
-    pub dt: f64,
+    inv_dt: f64,
     prev_q: Option<f64>,
     prev_qf: f64,
 }
 
 impl Cascade {
-    pub fn new(kp: f64, kv: f64, u_min: f64, u_max: f64, dt: f64) -> Result<Self> {
+    pub fn new(kp: f64, kv: f64, u_min: f64, u_max: f64) -> Result<Self> {
         check::finite("kp", kp)?;
         check::finite("kv", kv)?;
-        check::positive("dt", dt)?;
-        if u_min.is_nan() || u_max.is_nan() || u_min >= u_max {
-            return Err(CoreError::InvalidParameter {
-                name: "u_min",
-                reason: format!("output limits must satisfy u_min < u_max, got [{u_min}, {u_max}]"),
-            });
-        }
-        Ok(Self { kp, kv, u_min, u_max, dt, prev_q: None, prev_qf: 0.0 })
+        check_limits(u_min, u_max)?;
+        Ok(Self { kp, kv, u_min, u_max, inv_dt: 0.0, prev_q: None, prev_qf: 0.0 })
     }
 }
 
 impl Controller for Cascade {
+    fn prepare(&mut self, dt: f64) -> Result<()> {
+        self.inv_dt = 1.0 / check::step("dt", dt)?;
+        Ok(())
+    }
     #[inline]
     fn update(&mut self, reference: f64, measured: f64) -> f64 {
         let q_prev = self.prev_q.unwrap_or(measured);
         let qf = 0.5 * (measured + q_prev);
         let qf_prev = if self.prev_q.is_some() { self.prev_qf } else { qf };
-        let qdot = (qf - qf_prev) / self.dt;
+        let qdot = (qf - qf_prev) * self.inv_dt;
         self.prev_q = Some(measured);
         self.prev_qf = qf;
         (self.kp * self.kv * (reference - measured) - self.kv * qdot).clamp(self.u_min, self.u_max)
@@ -175,7 +210,6 @@ pub struct PidDob {
     pub c: f64,
     pub delay: f64,
     pub dob_cutoff_hz: f64,
-    pub dt: f64,
     q_inv_plant: Biquad,
     q_input: Biquad,
     u_hist: Vec<f64>,
@@ -185,31 +219,51 @@ pub struct PidDob {
     pub estimate: f64,
 }
 
+/// Longest input history the observer keeps (its delay in steps): 2^24 samples, 128 MiB.
+pub const MAX_OBSERVER_LAG: usize = 1 << 24;
+
 impl PidDob {
-    /// `pid` supplies the gains, limits and sample time; `a, b, c, delay` the nominal plant.
+    /// `pid` supplies the gains and limits; `a, b, c, delay` the nominal plant.
     pub fn new(pid: Pid, a: f64, b: f64, c: f64, delay: f64, dob_cutoff_hz: f64) -> Result<Self> {
         check::positive("a", a)?;
         check::finite("b", b)?;
         check::finite("c", c)?;
         check::non_negative("delay", delay)?;
         check::positive("dob_cutoff_hz", dob_cutoff_hz)?;
-        let dt = pid.dt;
-        if dob_cutoff_hz * dt >= 0.5 {
-            return Err(CoreError::InvalidParameter {
-                name: "dob_cutoff_hz",
-                reason: format!("the Q-filter cutoff must lie below the Nyquist frequency {} Hz, got {dob_cutoff_hz}", 0.5 / dt),
-            });
-        }
-        let tau = 1.0 / (2.0 * std::f64::consts::PI * dob_cutoff_hz);
-        let den = [tau * tau, 2.0 * tau, 1.0];
-        let q_inv_plant = Biquad::tustin([1.0 / a, b / a, c / a], den, dt);
-        let q_input = Biquad::tustin([0.0, 0.0, 1.0], den, dt);
-        let lag = ((delay / dt + 0.5).round() as usize).max(1);
-        Ok(Self { pid, a, b, c, delay, dob_cutoff_hz, dt, q_inv_plant, q_input, u_hist: vec![0.0; lag], head: 0, started: false, estimate: 0.0 })
+        let none = Biquad { n: [0.0; 3], d: [0.0; 2], s: [0.0; 2] };
+        Ok(Self { pid, a, b, c, delay, dob_cutoff_hz, q_inv_plant: none.clone(), q_input: none, u_hist: Vec::new(), head: 0, started: false, estimate: 0.0 })
     }
 }
 
 impl Controller for PidDob {
+    fn prepare(&mut self, dt: f64) -> Result<()> {
+        self.pid.prepare(dt)?;
+        if self.dob_cutoff_hz * dt >= 0.5 {
+            return Err(CoreError::InvalidParameter {
+                name: "dob_cutoff_hz",
+                reason: format!("the Q-filter cutoff must lie below the Nyquist frequency {} Hz, got {}", 0.5 / dt, self.dob_cutoff_hz),
+            });
+        }
+        let lag = match check::samples("delay", self.delay, dt, MAX_OBSERVER_LAG)? {
+            Some(_) => ((self.delay / dt + 0.5).round() as usize).clamp(1, MAX_OBSERVER_LAG),
+            None => {
+                return Err(CoreError::TooLarge {
+                    name: "delay",
+                    requested: self.delay / dt,
+                    limit: MAX_OBSERVER_LAG as f64,
+                    what: "samples of observer history",
+                    reason: "the observer's nominal delay is too long for this step",
+                })
+            }
+        };
+        let tau = 1.0 / (2.0 * std::f64::consts::PI * self.dob_cutoff_hz);
+        let den = [tau * tau, 2.0 * tau, 1.0];
+        self.q_inv_plant = Biquad::tustin([1.0 / self.a, self.b / self.a, self.c / self.a], den, dt);
+        self.q_input = Biquad::tustin([0.0, 0.0, 1.0], den, dt);
+        self.u_hist = vec![0.0; lag];
+        self.head = 0;
+        Ok(())
+    }
     #[inline]
     fn update(&mut self, reference: f64, measured: f64) -> f64 {
         if !self.started {
@@ -262,10 +316,6 @@ impl ControllerModel {
     pub fn reset(&mut self) {
         with_controller!(self, c => c.reset())
     }
-    /// The sample time the controller was built for.
-    pub fn dt(&self) -> f64 {
-        with_controller!(self, c => c.dt)
-    }
 }
 
 #[cfg(test)]
@@ -286,12 +336,11 @@ mod tests {
         let plant = reference::paper_plant();
         let r: Vec<f64> = (0..n).map(|k| 1e-3 * (1.0 - (-(k as f64) * dt / 0.05).exp())).collect();
         let load: Vec<f64> = (0..n).map(|k| if k >= n / 2 { 0.5 } else { 0.0 }).collect();
-        let pid = Pid::new(5e4, 0.0, 100.0, 5e-4, f64::NEG_INFINITY, f64::INFINITY, dt).unwrap();
+        let pid = Pid::new(5e4, 0.0, 100.0, 5e-4, f64::NEG_INFINITY, f64::INFINITY).unwrap();
         let run = |ctrl: ControllerModel, load: Option<&[f64]>| {
             let mut input = ClosedLoopInput::new(&r, dt);
             input.load_force = load;
-            let mut c = ctrl;
-            simulate(&plant, None, &mut c, &input).unwrap()
+            simulate(&plant, None, None, Some(&ctrl), &input).unwrap()
         };
         // Nominal plant = true plant, no disturbance: the observer estimate stays ~0 (Tustin vs
         // exact ZOH and the half-sample delay rounding leave ~1e-4 of the 1 mm move).
@@ -315,9 +364,12 @@ mod tests {
 
     #[test]
     fn dob_checks_its_parameters() {
-        let pid = Pid::new(1.0, 0.0, 0.0, 0.0, -1.0, 1.0, 1e-3).unwrap();
+        let pid = Pid::new(1.0, 0.0, 0.0, 0.0, -1.0, 1.0).unwrap();
         assert!(PidDob::new(pid.clone(), 0.0, 1.0, 1.0, 0.0, 10.0).is_err());
-        assert!(PidDob::new(pid.clone(), 1.0, 1.0, 1.0, 0.0, 600.0).is_err());
-        assert!(PidDob::new(pid, 1.0, 1.0, 1.0, -1.0, 10.0).is_err());
+        assert!(PidDob::new(pid.clone(), 1.0, 1.0, 1.0, 0.0, 600.0).unwrap().prepare(1e-3).is_err(), "cutoff above Nyquist");
+        assert!(PidDob::new(pid.clone(), 1.0, 1.0, 1.0, -1.0, 10.0).is_err());
+        // A nominal delay of 1e10 s at 1 ns steps: refused, not a capacity-overflow panic.
+        let err = PidDob::new(pid, 1.0, 1.0, 0.0, 1e10, 20.0).unwrap().prepare(1e-9).unwrap_err();
+        assert!(matches!(err, CoreError::TooLarge { name: "delay", .. }), "{err}");
     }
 }

@@ -50,9 +50,17 @@ pub enum CoreError {
     #[error("`{name}`: {reason}")]
     InvalidParameter { name: &'static str, reason: String },
 
-    /// The simulation state left the finite range (an unstable loop, for instance).
-    #[error("simulation diverged at t = {time} s (state became non-finite); the closed loop is probably unstable at these gains or this step size")]
-    Diverged { time: f64 },
+    /// A simulated quantity left the finite range (an unstable loop, an overflowing gain ...).
+    #[error("simulation produced a non-finite {quantity} at step {step} (t = {time} s); {hint}")]
+    NonFiniteOutput { quantity: &'static str, step: usize, time: f64, hint: &'static str },
+
+    /// A computation would need more memory (or more work) than is reasonable for its input.
+    #[error("`{name}` would need {requested} {what}, more than the limit of {limit}: {reason}")]
+    TooLarge { name: &'static str, requested: f64, limit: f64, what: &'static str, reason: &'static str },
+
+    /// The caller asked the computation to stop (Ctrl-C).
+    #[error("interrupted")]
+    Interrupted,
 }
 
 /// Result alias used throughout the core.
@@ -71,14 +79,38 @@ pub mod check {
         }
     }
 
-    /// Strictly positive and finite.
+    /// Strictly positive, finite and not subnormal (a subnormal stiffness or step makes its
+    /// reciprocal overflow).
     pub fn positive(name: &'static str, value: f64) -> Result<f64> {
         finite(name, value)?;
-        if value > 0.0 {
+        if value > 0.0 && value.is_normal() {
             Ok(value)
         } else {
             Err(CoreError::NotPositive { name, value })
         }
+    }
+
+    /// A time step: positive, normal, with a finite reciprocal.
+    pub fn step(name: &'static str, value: f64) -> Result<f64> {
+        positive(name, value)?;
+        if (1.0 / value).is_finite() {
+            Ok(value)
+        } else {
+            Err(CoreError::InvalidParameter { name, reason: format!("{value} s is too small a step (its reciprocal overflows)") })
+        }
+    }
+
+    /// A whole number of samples from a duration, without wrapping or saturating: `Ok(None)`
+    /// when the count is at least `cap` (the caller treats that as "longer than the run").
+    pub fn samples(name: &'static str, seconds: f64, dt: f64, cap: usize) -> Result<Option<usize>> {
+        let steps = seconds / dt;
+        if !steps.is_finite() || steps < 0.0 {
+            return Err(CoreError::InvalidParameter { name, reason: format!("{seconds} s at a step of {dt} s is not a usable number of samples") });
+        }
+        if steps >= cap as f64 {
+            return Ok(None);
+        }
+        Ok(Some(steps as usize))
     }
 
     /// Non-negative and finite.
@@ -120,5 +152,31 @@ pub mod check {
             }
         }
         Ok(())
+    }
+}
+
+/// A zeroed vector of `n` doubles, allocated fallibly (calloc: pages appear as they are written),
+/// so that an impossible size becomes [`CoreError::TooLarge`] instead of an abort.
+pub fn try_zeroed(name: &'static str, n: usize) -> Result<Vec<f64>> {
+    let too_large = || CoreError::TooLarge {
+        name,
+        requested: n as f64 * 8.0,
+        limit: isize::MAX as f64,
+        what: "bytes",
+        reason: "the allocation failed (not enough memory)",
+    };
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    let layout = std::alloc::Layout::array::<f64>(n).map_err(|_| too_large())?;
+    // SAFETY: the layout has a non-zero size; a null pointer is handled; on success the block
+    // holds `n` zeroed (hence valid) f64 values and is owned by the returned vector, which frees
+    // it with the same layout (the global allocator, capacity n).
+    unsafe {
+        let ptr = std::alloc::alloc_zeroed(layout) as *mut f64;
+        if ptr.is_null() {
+            return Err(too_large());
+        }
+        Ok(Vec::from_raw_parts(ptr, n, n))
     }
 }

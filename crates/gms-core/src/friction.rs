@@ -8,7 +8,7 @@
 
 use crate::error::{check, CoreError, Result};
 use crate::numeric::{fma, UnitIntervalPoly};
-use crate::stribeck::{check_fractions, StaticFriction, Stribeck};
+use crate::stribeck::{check_fractions, LevelShift, StaticFriction, Stribeck};
 
 /// How a plant step responds to a constant friction force `F` held over the step:
 /// displacement `dx = free_dx - dx_per_newton * F`, end velocity `v = free_v - v_per_newton * F`.
@@ -36,6 +36,21 @@ pub trait FrictionElement {
     /// Return to the virgin (unloaded, sticking) state.
     fn reset(&mut self);
 
+    /// Called once before a run, after [`reset`](Self::reset), with the initial position and
+    /// velocity; elements whose force depends on where the axis is (position-dependent effects)
+    /// start tracking from there.
+    fn begin(&mut self, _position: f64, _velocity: f64) {}
+
+    /// Whether [`set_level_shift`](Self::set_level_shift) changes the force (the static map's
+    /// Coulomb and viscous levels can be shifted per direction; the other models have none).
+    fn supports_level_shift(&self) -> bool {
+        false
+    }
+
+    /// Shift the friction levels for the next step (position- and time-dependent friction,
+    /// direction asymmetry); only meaningful when [`supports_level_shift`](Self::supports_level_shift).
+    fn set_level_shift(&mut self, _shift: LevelShift) {}
+
     /// Force reported at the first sample of a trajectory that starts at velocity `v0`: the
     /// virgin state for models with memory, the map value for memoryless ones.
     fn initial_force(&self, _v0: f64) -> f64 {
@@ -62,16 +77,18 @@ pub trait FrictionElement {
 // Static map
 // ---------------------------------------------------------------------------------------------
 
-/// The static map as a friction element: memoryless, except for the last force (for `force()`).
+/// The static map as a friction element: memoryless, except for the last force (for `force()`)
+/// and the level shift of the current step.
 #[derive(Debug, Clone)]
 pub struct StaticElement {
     pub map: StaticFriction,
     last: f64,
+    shift: LevelShift,
 }
 
 impl StaticElement {
     pub fn new(map: StaticFriction) -> Self {
-        Self { map, last: map.offset }
+        Self { map, last: map.offset, shift: LevelShift::NONE }
     }
 }
 
@@ -82,7 +99,7 @@ impl FrictionElement for StaticElement {
     }
     #[inline]
     fn advance(&mut self, dx: f64, dt: f64) -> f64 {
-        self.last = self.map.force(dx / dt);
+        self.last = self.map.force_shifted(dx / dt, &self.shift);
         self.last
     }
     fn tangent_stiffness(&self, _direction: f64, dt: f64) -> f64 {
@@ -90,23 +107,33 @@ impl FrictionElement for StaticElement {
     }
     fn reset(&mut self) {
         self.last = self.map.offset;
+        self.shift = LevelShift::NONE;
     }
     fn initial_force(&self, v0: f64) -> f64 {
-        self.map.force(v0)
+        self.map.force_shifted(v0, &self.shift)
+    }
+    fn supports_level_shift(&self) -> bool {
+        true
+    }
+    fn set_level_shift(&mut self, shift: LevelShift) {
+        self.shift = shift;
     }
 
     /// Set-valued stiction (an implicit Karnopp scheme): if the force needed to bring the mass to
-    /// rest by the end of the step is within the break-away level, the contact sticks and supplies
-    /// exactly that force; otherwise it slides with `sign(v) s(v) + sigma v`, solved implicitly in
-    /// the end velocity. No chattering around zero velocity, whatever the step.
+    /// rest by the end of the step is within the break-away level of the direction it pushes,
+    /// the contact sticks and supplies exactly that force; otherwise it slides with
+    /// `sign(v) s_dir(v) + sigma_dir v`, solved implicitly in the end velocity. No chattering
+    /// around zero velocity, whatever the step.
     ///
     /// With a linear region (`map.v_linear > 0`) the map is single-valued: inside the region the
     /// end velocity solves `v (1 + c_v slope) = free_v`; outside, the sliding branch below.
     fn advance_coupled(&mut self, c: &Coupling, _dt: f64) -> f64 {
         let m = &self.map;
+        let sh = &self.shift;
         let free_v = c.free_v - c.v_per_newton * m.offset;
+        let dir = if free_v >= 0.0 { 1.0 } else { -1.0 };
         if m.v_linear > 0.0 {
-            let slope = m.linear_region_slope();
+            let slope = m.linear_region_slope_shifted(dir, sh);
             let v = free_v / (1.0 + c.v_per_newton * slope);
             if v.abs() < m.v_linear {
                 self.last = slope * v + m.offset;
@@ -114,21 +141,22 @@ impl FrictionElement for StaticElement {
             }
         } else {
             let hold = free_v / c.v_per_newton;
-            if hold.abs() <= m.stribeck.max_level() {
+            if hold.abs() <= m.breakaway_shifted(dir, sh) {
                 self.last = hold + m.offset;
                 return self.last;
             }
         }
-        let dir = free_v.signum();
+        let (level_shift, sigma) = m.direction_levels(dir, sh);
         // v (1 + c_v sigma) = free_v - c_v dir s(v); s is evaluated at the current estimate of v.
         let mut v = free_v;
         for _ in 0..3 {
-            v = (free_v - c.v_per_newton * dir * m.stribeck.eval(v)) / (1.0 + c.v_per_newton * m.sigma);
+            let s = (m.stribeck.eval(v) + level_shift).max(0.0);
+            v = (free_v - c.v_per_newton * dir * s) / (1.0 + c.v_per_newton * sigma);
             if v * dir < 0.0 {
                 v = 0.0;
             }
         }
-        self.last = dir * m.stribeck.eval(v) + m.sigma * v + m.offset;
+        self.last = dir * (m.stribeck.eval(v) + level_shift).max(0.0) + sigma * v + m.offset;
         self.last
     }
 }
@@ -392,7 +420,7 @@ impl FrictionElement for Gms {
 // ---------------------------------------------------------------------------------------------
 
 /// Plain Maxwell-slip: N blocks with stiffness `k_i` that slip instantly at a constant `w_i` (N).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct MaxwellSlip {
     pub k: Vec<f64>,
     pub w: Vec<f64>,

@@ -8,13 +8,16 @@
 //!   friction-only simulation along measured trajectories.
 //! - [`plant`]: `a / (s^2 + b s + c)` with an input delay, exact ZOH with fractional delays.
 //! - [`control`]: PID and the EMPS cascade controller.
-//! - [`closed_loop`]: the closed-loop axis with friction in the loop.
+//! - [`effects`]: effects beyond the friction model, in feedback (position- and time-dependent
+//!   friction and forces, asymmetry, extra pre-sliding blocks, a compliant load).
+//! - [`closed_loop`]: the closed-loop (or open-loop) axis with friction and effects in the loop.
 //! - [`batch`]: many closed-loop runs at once on all cores (sweeps, Monte Carlo), stacked outputs.
 //! - [`reference`]: reference problems (the paper's axis, EMPS) shared by tests and benchmarks.
 
 pub mod batch;
 pub mod closed_loop;
 pub mod control;
+pub mod effects;
 pub mod error;
 pub mod friction;
 pub mod numeric;
@@ -22,9 +25,10 @@ pub mod plant;
 pub mod reference;
 pub mod stribeck;
 
-pub use closed_loop::{simulate, simulate_generic, simulate_generic_into, simulate_into, ClosedLoopBuffers, ClosedLoopInput, ClosedLoopOutput, NoFriction};
-pub use control::{Cascade, Controller, ControllerModel, Pid};
+pub use closed_loop::{simulate, simulate_open_loop, simulate_generic, simulate_generic_into, simulate_into, Axis, ClosedLoopBuffers, ClosedLoopInput, ClosedLoopOutput, NoFriction, Record};
+pub use control::{Cascade, Controller, ControllerModel, OpenLoop, Pid, PidDob};
+pub use effects::{Asymmetry, Compliance, Drift, DriftShape, Effects, EffectsElement, PositionSeries};
 pub use error::{CoreError, Result};
 pub use friction::{simulate_position, simulate_velocity, Coupling, FrictionElement, FrictionModel, Gms, LuGre, MaxwellSlip, SlipLaw, StaticElement};
-pub use plant::{simulate_open_loop, DelayLine, DiscretePlant, Plant};
-pub use stribeck::{StaticFriction, Stribeck};
+pub use plant::{DelayLine, DiscretePlant, Plant};
+pub use stribeck::{LevelShift, StaticFriction, Stribeck};

@@ -1,7 +1,7 @@
 //! Second-order plant `Y/U = a / (s^2 + b s + c)` with an input delay (paper eq. 1), discretised
 //! exactly under a zero-order hold, including delays that are not a whole number of steps.
 
-use crate::error::{check, Result};
+use crate::error::{check, CoreError, Result};
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
 /// Continuous-time plant. State: position `y` and velocity `dy/dt`.
@@ -49,47 +49,75 @@ impl Plant {
     }
 
     /// `(Phi(h), Gamma(h))`: `exp(A h)` and `int_0^h exp(A s) ds B` via one 3x3 matrix exponential.
-    pub fn zoh(&self, h: f64) -> (Matrix2<f64>, Vector2<f64>) {
+    ///
+    /// Refuses plants whose dynamics are so much faster than `h` that the exponential's scaling
+    /// would overflow (it would square without end): `|A h|` must stay below [`MAX_STIFFNESS_RATIO`].
+    pub fn zoh(&self, h: f64) -> Result<(Matrix2<f64>, Vector2<f64>)> {
         if h == 0.0 {
-            return (Matrix2::identity(), Vector2::zeros());
+            return Ok((Matrix2::identity(), Vector2::zeros()));
         }
         let a = self.a_matrix();
         let mut m = Matrix3::zeros();
         m.fixed_view_mut::<2, 2>(0, 0).copy_from(&(a * h));
         m[(1, 2)] = self.a * h;
+        let ratio = (a * h).abs().max().max(self.a * h);
+        if !(ratio <= MAX_STIFFNESS_RATIO) {
+            return Err(CoreError::InvalidParameter {
+                name: "plant",
+                reason: format!(
+                    "a/(s^2 + b s + c) with a = {}, b = {}, c = {} is too fast for a step of {h} s (|A dt| = {ratio:.3e} > {MAX_STIFFNESS_RATIO:.0e}): its discretisation is not meaningful",
+                    self.a, self.b, self.c
+                ),
+            });
+        }
         let e = m.exp();
-        (e.fixed_view::<2, 2>(0, 0).into_owned(), Vector2::new(e[(0, 2)], e[(1, 2)]))
+        if e.iter().any(|x| !x.is_finite()) {
+            return Err(CoreError::InvalidParameter { name: "plant", reason: format!("the discretisation at a step of {h} s overflows") });
+        }
+        Ok((e.fixed_view::<2, 2>(0, 0).into_owned(), Vector2::new(e[(0, 2)], e[(1, 2)])))
     }
 
-    /// Exact discretisation at step `dt`.
+    /// Exact discretisation at step `dt`. A delay of more steps than any run can have
+    /// ([`MAX_DELAY_STEPS`]) is kept as "never arrives" rather than converted to an integer that
+    /// could wrap.
     pub fn discretize(&self, dt: f64) -> Result<DiscretePlant> {
-        check::positive("dt", dt)?;
-        let steps = self.delay / dt;
-        // Whole steps of delay and the fractional remainder (guarded against round-off so that a
-        // delay of exactly m steps gives frac = 0).
-        let mut whole = steps.floor();
-        let mut frac = (self.delay - whole * dt).max(0.0);
-        if frac > dt * (1.0 - 1e-9) {
-            whole += 1.0;
-            frac = 0.0;
-        }
-        if frac < dt * 1e-9 {
-            frac = 0.0;
-        }
-        let (phi, gamma) = self.zoh(dt);
-        let (phi_rest, _) = self.zoh(dt - frac);
-        let (_, gamma_frac) = self.zoh(frac);
-        let (_, gamma_rest) = self.zoh(dt - frac);
+        check::step("dt", dt)?;
+        let (whole, frac) = match check::samples("delay", self.delay, dt, MAX_DELAY_STEPS)? {
+            None => (MAX_DELAY_STEPS, 0.0),
+            Some(_) => {
+                // Whole steps of delay and the fractional remainder (guarded against round-off so
+                // that a delay of exactly m steps gives frac = 0).
+                let mut whole = (self.delay / dt).floor();
+                let mut frac = (self.delay - whole * dt).max(0.0);
+                if frac > dt * (1.0 - 1e-9) {
+                    whole += 1.0;
+                    frac = 0.0;
+                }
+                if frac < dt * 1e-9 {
+                    frac = 0.0;
+                }
+                (whole as usize, frac)
+            }
+        };
+        let (phi, gamma) = self.zoh(dt)?;
+        let (phi_rest, gamma_rest) = self.zoh(dt - frac)?;
+        let (_, gamma_frac) = self.zoh(frac)?;
         Ok(DiscretePlant {
             phi,
             gamma_old: phi_rest * gamma_frac,
             gamma_new: gamma_rest,
             gamma_force: gamma / self.force_gain,
-            delay_steps: whole as usize,
+            delay_steps: whole,
             dt,
         })
     }
 }
+
+/// Largest `|A dt|` the discretisation accepts (dynamics 1e8 times faster than the step).
+pub const MAX_STIFFNESS_RATIO: f64 = 1e8;
+
+/// Delays of at least this many steps never reach any run (2^52: still exact as a double).
+pub const MAX_DELAY_STEPS: usize = 1 << 52;
 
 /// The plant discretised at `dt`: `x+ = Phi x + g_old u[k-m-1] + g_new u[k-m] - g_force F`.
 #[derive(Debug, Clone, Copy)]
@@ -114,9 +142,10 @@ pub struct DelayLine {
 }
 
 impl DelayLine {
-    /// Holds the current input and the `delay_steps + 1` before it.
-    pub fn new(delay_steps: usize, initial: f64) -> Self {
-        Self { buf: vec![initial; delay_steps + 2], head: 0 }
+    /// Holds the current input and the `delay_steps + 1` before it; for a run of `n` samples a
+    /// longer line behaves like one of `n` (nothing pushed comes out), so the length is capped.
+    pub fn new(delay_steps: usize, initial: f64, n: usize) -> Self {
+        Self { buf: vec![initial; delay_steps.min(n) + 2], head: 0 }
     }
 
     /// Push `u[k]`, return `(u[k-m-1], u[k-m])`.
@@ -130,22 +159,4 @@ impl DelayLine {
         let next = if oldest + 1 == n { 0 } else { oldest + 1 };
         (self.buf[oldest], self.buf[next])
     }
-}
-
-/// Open-loop response of the plant to an input sequence `u[k]` held over `[k dt, (k+1) dt)`
-/// (no friction), starting at rest. Returns `(position, velocity)` at `t[k] = k dt`.
-pub fn simulate_open_loop(plant: &Plant, dt: f64, u: &[f64]) -> Result<(Vec<f64>, Vec<f64>)> {
-    check::finite_array("u", u, 1)?;
-    let d = plant.discretize(dt)?;
-    let mut line = DelayLine::new(d.delay_steps, 0.0);
-    let mut x = Vector2::zeros();
-    let mut y = Vec::with_capacity(u.len());
-    let mut v = Vec::with_capacity(u.len());
-    for &uk in u {
-        y.push(x[0]);
-        v.push(x[1]);
-        let (old, new) = line.push(uk);
-        x = d.phi * x + d.gamma_old * old + d.gamma_new * new;
-    }
-    Ok((y, v))
 }

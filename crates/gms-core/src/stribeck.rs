@@ -118,24 +118,50 @@ impl StaticFriction {
 
     /// Slope of the linear region `F(v_linear) / v_linear` (N s/m), without the offset.
     pub fn linear_region_slope(&self) -> f64 {
-        (self.stribeck.eval(self.v_linear) + self.sigma * self.v_linear) / self.v_linear
+        self.linear_region_slope_shifted(1.0, &LevelShift::NONE)
+    }
+
+    /// The linear region's slope for motion in direction `dir` under `shift`.
+    pub fn linear_region_slope_shifted(&self, dir: f64, shift: &LevelShift) -> f64 {
+        let (level, sigma) = self.direction_levels(dir, shift);
+        ((self.stribeck.eval(self.v_linear) + level).max(0.0) + sigma * self.v_linear) / self.v_linear
+    }
+
+    /// The level a sticking contact holds against a push in direction `dir` (N).
+    pub fn breakaway_shifted(&self, dir: f64, shift: &LevelShift) -> f64 {
+        (self.stribeck.max_level() + self.direction_levels(dir, shift).0).max(0.0)
+    }
+
+    /// `(level shift, viscous coefficient)` for motion in direction `dir` (+1 / -1); the
+    /// viscous coefficient never goes below zero (friction cannot push).
+    #[inline(always)]
+    pub fn direction_levels(&self, dir: f64, shift: &LevelShift) -> (f64, f64) {
+        if dir >= 0.0 {
+            (shift.level_pos, (self.sigma + shift.viscous_pos).max(0.0))
+        } else {
+            (shift.level_neg, (self.sigma + shift.viscous_neg).max(0.0))
+        }
     }
 
     /// `F(v)`; zero velocity gives the offset only (the set-valued stiction is resolved by the
     /// closed-loop coupling, see [`crate::friction::FrictionElement::advance_coupled`]).
     #[inline(always)]
     pub fn force(&self, v: f64) -> f64 {
-        if v.abs() < self.v_linear {
-            return self.linear_region_slope() * v + self.offset;
+        self.force_shifted(v, &LevelShift::NONE)
+    }
+
+    /// `F(v)` with the Coulomb/viscous levels shifted per direction.
+    #[inline(always)]
+    pub fn force_shifted(&self, v: f64, shift: &LevelShift) -> f64 {
+        if v == 0.0 {
+            return self.offset;
         }
-        let sliding = if v > 0.0 {
-            self.stribeck.eval(v)
-        } else if v < 0.0 {
-            -self.stribeck.eval(v)
-        } else {
-            0.0
-        };
-        sliding + self.sigma * v + self.offset
+        let dir = if v > 0.0 { 1.0 } else { -1.0 };
+        if v.abs() < self.v_linear {
+            return self.linear_region_slope_shifted(dir, shift) * v + self.offset;
+        }
+        let (level, sigma) = self.direction_levels(dir, shift);
+        dir * (self.stribeck.eval(v) + level).max(0.0) + sigma * v + self.offset
     }
 
     /// Evaluate the map on many velocities.
@@ -143,6 +169,22 @@ impl StaticFriction {
         check::finite_array("v", v, 1)?;
         Ok(v.iter().map(|&x| self.force(x)).collect())
     }
+}
+
+/// Per-direction shifts of a static map's levels for one step: the Coulomb/Stribeck level of
+/// motion in the positive (negative) direction becomes `s(v) + level_pos` (`s(v) + level_neg`),
+/// the viscous coefficient `sigma + viscous_pos` (`sigma + viscous_neg`), each floored at zero.
+/// Position- and time-dependent friction and direction asymmetry are expressed this way.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LevelShift {
+    pub level_pos: f64,
+    pub level_neg: f64,
+    pub viscous_pos: f64,
+    pub viscous_neg: f64,
+}
+
+impl LevelShift {
+    pub const NONE: LevelShift = LevelShift { level_pos: 0.0, level_neg: 0.0, viscous_pos: 0.0, viscous_neg: 0.0 };
 }
 
 /// Validate that fractions are non-negative and sum to one (GMS `alpha`).

@@ -1,8 +1,8 @@
 //! Batch simulation: equals the individual runs bit for bit, whatever the thread count; errors
 //! name the failing run; progress counts every run; cancellation skips runs not started.
-use gms_core::batch::{cancelled, simulate_batch, simulate_batch_stacked, BatchOptions, Job};
+use gms_core::batch::{simulate_batch, simulate_batch_stacked, BatchOptions, Job};
 use gms_core::reference;
-use gms_core::{simulate, ClosedLoopInput, ControllerModel, CoreError, FrictionModel, Pid};
+use gms_core::{Axis, ClosedLoopInput, ControllerModel, CoreError, FrictionModel, Pid, Record};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 const DT: f64 = 1e-4;
@@ -16,8 +16,8 @@ fn jobs(r: &[f64], n: usize) -> Vec<Job<'_>> {
                 _ => Some(FrictionModel::Gms(reference::paper_gms())),
             };
             let kp = 5.0e5 * (1.0 + 0.1 * i as f64);
-            let pid = Pid::new(kp, 2.5e6, 1.0e3, 5e-4, -10.0, 10.0, DT).unwrap();
-            Job { plant: reference::paper_plant(), friction, controller: ControllerModel::Pid(pid), input: ClosedLoopInput::new(r, DT) }
+            let pid = Pid::new(kp, 2.5e6, 1.0e3, 5e-4, -10.0, 10.0).unwrap();
+            Job { axis: Axis::new(reference::paper_plant(), friction, None).unwrap(), controller: Some(ControllerModel::Pid(pid)), input: ClosedLoopInput::new(r, DT) }
         })
         .collect()
 }
@@ -30,17 +30,10 @@ fn reference() -> Vec<f64> {
 fn stacked_equals_individual_runs_for_any_thread_count() {
     let r = reference();
     let js = jobs(&r, 7);
-    let single: Vec<_> = js
-        .iter()
-        .map(|j| {
-            let mut f = j.friction.clone();
-            let mut c = j.controller.clone();
-            simulate(&j.plant, f.as_mut(), &mut c, &j.input).unwrap()
-        })
-        .collect();
+    let single: Vec<_> = js.iter().map(|j| j.axis.simulate(j.controller.as_ref(), &j.input).unwrap()).collect();
     for threads in [None, Some(1), Some(2), Some(3)] {
         let progress = AtomicUsize::new(0);
-        let out = simulate_batch_stacked(&js, &BatchOptions { threads, progress: Some(&progress), cancel: None }).unwrap();
+        let out = simulate_batch_stacked(&js, &Record::ALL, &BatchOptions { threads, progress: Some(&progress), cancel: None }).unwrap();
         assert_eq!((out.n_runs, out.n_samples), (7, r.len()));
         assert_eq!(out.position.len(), 7 * r.len());
         assert_eq!(progress.load(Ordering::Relaxed), 7);
@@ -77,7 +70,8 @@ fn first_failing_run_is_reported() {
     let mut js = jobs(&r, 6);
     js[4].input = ClosedLoopInput::new(&bad_ref, DT);
     js[2].input.dt = -1.0;
-    let err = simulate_batch_stacked(&js, &BatchOptions { threads: Some(2), ..Default::default() }).unwrap_err();
+    let _ = &mut js;
+    let err = simulate_batch_stacked(&js, &Record::ALL, &BatchOptions { threads: Some(2), ..Default::default() }).unwrap_err();
     assert_eq!(err.run, 2);
     assert!(matches!(err.error, CoreError::NotPositive { name: "dt", .. }), "{err}");
     assert!(err.to_string().starts_with("run 2: "));
@@ -93,16 +87,16 @@ fn divergence_and_length_mismatch_name_the_run() {
     let short = &r[..100];
     let mut js = jobs(&r, 3);
     js[1].input = ClosedLoopInput::new(short, DT);
-    let err = simulate_batch_stacked(&js, &BatchOptions::default()).unwrap_err();
+    let err = simulate_batch_stacked(&js, &Record::ALL, &BatchOptions::default()).unwrap_err();
     assert_eq!(err.run, 1);
     assert!(matches!(err.error, CoreError::LengthMismatch { expected: 3000, got: 100, .. }));
 
     let mut js = jobs(&r, 3);
     // Absurd gain: unstable loop, the state overflows.
-    js[1].controller = ControllerModel::Pid(Pid::new(1e12, 0.0, 0.0, 0.0, f64::NEG_INFINITY, f64::INFINITY, DT).unwrap());
-    let err = simulate_batch_stacked(&js, &BatchOptions::default()).unwrap_err();
+    js[1].controller = Some(ControllerModel::Pid(Pid::new(1e12, 0.0, 0.0, 0.0, f64::NEG_INFINITY, f64::INFINITY).unwrap()));
+    let err = simulate_batch_stacked(&js, &Record::ALL, &BatchOptions::default()).unwrap_err();
     assert_eq!(err.run, 1);
-    assert!(matches!(err.error, CoreError::Diverged { .. }));
+    assert!(matches!(err.error, CoreError::NonFiniteOutput { .. }), "{err}");
 }
 
 #[test]
@@ -112,13 +106,13 @@ fn cancel_skips_runs_and_zero_threads_is_rejected() {
     let cancel = AtomicBool::new(true);
     let progress = AtomicUsize::new(0);
     let res = simulate_batch(&js, &BatchOptions { threads: None, progress: Some(&progress), cancel: Some(&cancel) }).unwrap();
-    assert!(res.iter().all(|r| r.as_ref().err() == Some(&cancelled())));
+    assert!(res.iter().all(|r| r.as_ref().err() == Some(&CoreError::Interrupted)));
     assert_eq!(progress.load(Ordering::Relaxed), 0);
 
     let err = simulate_batch(&js, &BatchOptions { threads: Some(0), ..Default::default() }).unwrap_err();
     assert!(matches!(err, CoreError::NotPositive { name: "threads", .. }));
     // An empty batch is fine.
-    let out = simulate_batch_stacked(&[], &BatchOptions::default()).unwrap();
+    let out = simulate_batch_stacked(&[], &Record::ALL, &BatchOptions::default()).unwrap();
     assert_eq!((out.n_runs, out.position.len()), (0, 0));
 }
 

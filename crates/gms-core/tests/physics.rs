@@ -200,14 +200,11 @@ fn static_friction_sticks_below_breakaway_and_slides_above() {
     let map = StaticFriction::new(Stribeck::new(1.0, 1.5, 1e-3, 1.0).unwrap(), 0.0).unwrap();
     let dt = 1e-3;
     for (push, moves) in [(1.4, false), (1.6, true)] {
-        // open loop: a "controller" with zero gains plus constant feedforward
-        let mut ctrl = ControllerModel::Pid(Pid::new(0.0, 0.0, 0.0, 0.0, f64::NEG_INFINITY, f64::INFINITY, dt).unwrap());
-        let r = vec![0.0; 2000];
+        // open loop: the command is the constant push
         let ff = vec![push; 2000];
-        let mut input = ClosedLoopInput::new(&r, dt);
-        input.feedforward = Some(&ff);
-        let mut fr = FrictionModel::Static(StaticElement::new(map));
-        let out = simulate(&plant, Some(&mut fr), &mut ctrl, &input).unwrap();
+        let input = ClosedLoopInput::open(&ff, dt);
+        let fr = FrictionModel::Static(StaticElement::new(map));
+        let out = simulate(&plant, Some(&fr), None, None, &input).unwrap();
         let last = *out.position.last().unwrap();
         if moves {
             assert!(last > 1e-3, "should slide: {last}");
@@ -224,11 +221,10 @@ fn pid_tracks_a_step_without_friction_and_with_gms() {
     let plant = reference::paper_plant();
     let r = vec![1e-4; 40_000];
     for fr in [None, Some(FrictionModel::Gms(reference::paper_gms()))] {
-        let mut fr = fr;
-        let mut ctrl = ControllerModel::Pid(reference::paper_pid(dt));
+        let ctrl = ControllerModel::Pid(reference::paper_pid());
         let mut input = ClosedLoopInput::new(&r, dt);
         input.initial_position = 0.0;
-        let out = simulate(&plant, fr.as_mut(), &mut ctrl, &input).unwrap();
+        let out = simulate(&plant, fr.as_ref(), None, Some(&ctrl), &input).unwrap();
         let e = (r[0] - out.position.last().unwrap()).abs();
         assert!(e < 1e-8, "steady-state error {e}");
     }
@@ -256,13 +252,10 @@ fn static_map_with_linear_region_cannot_stick() {
     let plant = Plant::from_mass(10.0, 0.0, 0.0, 0.0, 1.0).unwrap();
     let map = StaticFriction::new(Stribeck::new(1.0, 1.5, 1e-3, 1.0).unwrap(), 0.0).unwrap().with_linear_region(1e-4).unwrap();
     let dt = 1e-3;
-    let mut ctrl = ControllerModel::Pid(Pid::new(0.0, 0.0, 0.0, 0.0, f64::NEG_INFINITY, f64::INFINITY, dt).unwrap());
-    let r = vec![0.0; 4000];
     let ff = vec![1.4; 4000];
-    let mut input = ClosedLoopInput::new(&r, dt);
-    input.feedforward = Some(&ff);
-    let mut fr = FrictionModel::Static(StaticElement::new(map));
-    let out = simulate(&plant, Some(&mut fr), &mut ctrl, &input).unwrap();
+    let input = ClosedLoopInput::open(&ff, dt);
+    let fr = FrictionModel::Static(StaticElement::new(map));
+    let out = simulate(&plant, Some(&fr), None, None, &input).unwrap();
     // creeps at the velocity where the linear region balances the push: v = 1.4 / slope
     let slope = map.linear_region_slope();
     let v_end = *out.velocity.last().unwrap();
