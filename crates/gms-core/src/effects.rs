@@ -72,43 +72,61 @@ impl PositionSeries {
     /// `g(q)`.
     #[inline]
     pub fn eval(&self, q: f64) -> f64 {
+        self.eval_with_slope(q).0
+    }
+
+    /// `(g(q), g'(q))`; the slope is zero where the series is held constant (beyond the travel
+    /// or the table).
+    #[inline]
+    pub fn eval_with_slope(&self, q: f64) -> (f64, f64) {
         match self {
             PositionSeries::Legendre { lo, hi, coef } => {
-                let x = (2.0 * (q - lo) / (hi - lo) - 1.0).clamp(-1.0, 1.0);
-                // Bonnet's recursion: (d + 1) P_{d+1} = (2d + 1) x P_d - d P_{d-1}.
+                let scale = 2.0 / (hi - lo);
+                let raw = scale * (q - lo) - 1.0;
+                let x = raw.clamp(-1.0, 1.0);
+                // Bonnet's recursion (d + 1) P_{d+1} = (2d + 1) x P_d - d P_{d-1}, and
+                // P'_{d+1} = P'_{d-1} + (2d + 1) P_d for the slope.
                 let (mut p_prev, mut p) = (1.0, x);
-                let mut sum = coef[0];
+                let (mut dp_prev, mut dp) = (0.0, 1.0);
+                let (mut sum, mut slope) = (coef[0], 0.0);
                 for (d, &c) in coef.iter().enumerate().skip(1) {
                     sum += c * p;
+                    slope += c * dp;
                     let df = d as f64;
                     let next = ((2.0 * df + 1.0) * x * p - df * p_prev) / (df + 1.0);
-                    p_prev = p;
-                    p = next;
+                    let dnext = dp_prev + (2.0 * df + 1.0) * p;
+                    (p_prev, p) = (p, next);
+                    (dp_prev, dp) = (dp, dnext);
                 }
-                sum
+                (sum, if raw.abs() <= 1.0 { slope * scale } else { 0.0 })
             }
             PositionSeries::Fourier { periods, harmonics, coef } => {
-                let mut sum = 0.0;
+                let (mut sum, mut slope) = (0.0, 0.0);
                 let mut i = 0;
                 for &period in periods {
-                    let (s1, c1) = (2.0 * std::f64::consts::PI * q / period).sin_cos();
+                    let w1 = 2.0 * std::f64::consts::PI / period;
+                    let (s1, c1) = (w1 * q).sin_cos();
                     // Harmonics by the angle-addition recursion: one sin_cos per period.
                     let (mut s, mut c) = (s1, c1);
-                    for _ in 0..*harmonics {
+                    for h in 1..=*harmonics {
+                        let w = w1 * h as f64;
                         sum += coef[i] * s + coef[i + 1] * c;
+                        slope += w * (coef[i] * c - coef[i + 1] * s);
                         i += 2;
                         let s_next = s * c1 + c * s1;
                         c = c * c1 - s * s1;
                         s = s_next;
                     }
                 }
-                sum
+                (sum, slope)
             }
             PositionSeries::Table { q0, dq, values } => {
-                let u = ((q - q0) / dq).clamp(0.0, (values.len() - 1) as f64);
+                let raw = (q - q0) / dq;
+                let u = raw.clamp(0.0, (values.len() - 1) as f64);
                 let i = (u.floor() as usize).min(values.len() - 2);
                 let w = u - i as f64;
-                values[i] + w * (values[i + 1] - values[i])
+                let step = values[i + 1] - values[i];
+                (values[i] + w * step, if raw == u { step / dq } else { 0.0 })
             }
         }
     }
@@ -319,14 +337,14 @@ impl<F: FrictionElement> EffectsElement<F> {
         self.failed.as_ref()
     }
 
-    /// Prepare the step: shift the levels, return the position force and the compliance's
-    /// transition matrix.
+    /// Prepare the step: shift the levels, return the position force at the step's start with
+    /// its slope, and the compliance's transition matrix.
     #[inline]
-    fn start_step(&mut self, dt: f64) -> (f64, Option<Matrix2<f64>>) {
+    fn start_step(&mut self, dt: f64) -> ((f64, f64), Option<Matrix2<f64>>) {
         if self.effects.shifts_levels() {
             self.inner.set_level_shift(self.effects.level_shift(self.q, self.t));
         }
-        let f_pos = self.effects.position_force.as_ref().map_or(0.0, |g| g.eval(self.q));
+        let f_pos = self.effects.position_force.as_ref().map_or((0.0, 0.0), |g| g.eval_with_slope(self.q));
         let phi = match self.effects.compliance.as_mut().map(|c| c.phi(dt)) {
             None => None,
             Some(Ok(phi)) => Some(phi),
@@ -339,8 +357,10 @@ impl<F: FrictionElement> EffectsElement<F> {
     }
 
     #[inline]
-    fn finish_step(&mut self, dx: f64, dt: f64, f_pos: f64, phi: Option<Matrix2<f64>>) -> f64 {
-        let mut extra = f_pos;
+    fn finish_step(&mut self, dx: f64, dt: f64, f_pos: (f64, f64), phi: Option<Matrix2<f64>>) -> f64 {
+        // The position force over the step: at mid-step, to first order (a spring neither gains
+        // nor loses energy).
+        let mut extra = f_pos.0 + 0.5 * f_pos.1 * dx;
         if let Some(b) = self.effects.blocks.as_mut() {
             extra += b.advance(dx, dt);
         }
@@ -415,8 +435,8 @@ impl<F: FrictionElement> FrictionElement for EffectsElement<F> {
     /// displacement.
     fn advance_coupled(&mut self, c: &Coupling, dt: f64) -> f64 {
         let (f_pos, phi) = self.start_step(dt);
-        let mut e0 = f_pos;
-        let mut k = 0.0;
+        let mut e0 = f_pos.0;
+        let mut k = 0.5 * f_pos.1;
         if let (Some(comp), Some(phi)) = (self.effects.compliance.as_ref(), phi.as_ref()) {
             let (e, kk) = comp.linear(phi, dt);
             e0 += e;
@@ -428,6 +448,10 @@ impl<F: FrictionElement> FrictionElement for EffectsElement<F> {
             let dir = if trial >= 0.0 { 1.0 } else { -1.0 };
             e0 += f_b;
             k += b.tangent_stiffness(dir, dt);
+        }
+        // A softening position force (negative slope) must not make the reduced coupling singular.
+        if 1.0 + c.dx_per_newton * k < 0.5 {
+            k = -0.5 / c.dx_per_newton;
         }
         let g = 1.0 / (1.0 + c.dx_per_newton * k);
         let free_dx = (c.free_dx - c.dx_per_newton * e0) * g;
@@ -472,6 +496,23 @@ mod tests {
             let w = 2.0 * std::f64::consts::PI * q / p;
             let want = (w).sin() + 0.5 * w.cos() - 0.2 * (2.0 * w).sin() + 0.3 * (2.0 * w).cos() + 0.1 * (3.0 * w).sin() - 0.4 * (3.0 * w).cos();
             assert!((s.eval(q) - want).abs() < 1e-12, "q = {q}");
+        }
+    }
+
+    #[test]
+    fn slopes_match_finite_differences() {
+        let series = [
+            PositionSeries::Legendre { lo: -0.2, hi: 0.3, coef: vec![0.5, 2.0, -1.0, 0.25, 0.7] },
+            PositionSeries::Fourier { periods: vec![5e-3, 1.3e-2], harmonics: 2, coef: vec![1.0, 0.5, -0.2, 0.3, 0.1, -0.4, 0.2, 0.9] },
+            PositionSeries::Table { q0: -0.1, dq: 0.05, values: vec![0.0, 2.0, 1.0, 1.5] },
+        ];
+        for s in &series {
+            for &q in &[-0.13, -0.02, 0.0123, 0.071, 0.24] {
+                let h = 1e-7;
+                let fd = (s.eval(q + h) - s.eval(q - h)) / (2.0 * h);
+                let (_, slope) = s.eval_with_slope(q);
+                assert!((slope - fd).abs() < 1e-5 * (1.0 + fd.abs()), "{s:?} at {q}: {slope} vs {fd}");
+            }
         }
     }
 
