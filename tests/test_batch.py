@@ -105,10 +105,12 @@ def test_binding_error_carries_run_index(axis):
     from gmsfric import _gmsfric
 
     plant, gms, pid, ref = axis
-    ctrl = pid._native(DT)
+    axis_spec = _gmsfric.AxisSpec(plant._native, gms._native)
+    inputs = {"reference": np.stack([ref, ref]), "feedforward": None, "input_disturbance": None, "load_force": None, "measurement_noise": None,
+              "quantization": 0.0, "drive_min": -np.inf, "drive_max": np.inf, "initial_position": None, "initial_velocity": 0.0}
     with pytest.raises(InvalidInputError, match=r"run 0 \(of 2\) failed: .*dt"):
         # The binding re-validates what the Python layer would have caught.
-        _gmsfric.simulate_closed_loop_batch([plant.params] * 2, [gms._native, gms._native], [ctrl, ctrl], np.stack([ref, ref]), -DT)
+        _gmsfric.simulate([axis_spec] * 2, [pid._native] * 2, -DT, inputs, ["position"])
 
 
 def test_progress_reports_to_stderr(axis, monkeypatch):

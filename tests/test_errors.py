@@ -15,22 +15,22 @@ T = np.linspace(0, 1, 11)
 @pytest.mark.parametrize(
     "call, match",
     [
-        (lambda: g.GMS(ST, [1e5, -1e4], [0.5, 0.5], 1.0), "`k`.*negative or zero stiffness"),
-        (lambda: g.GMS(ST, [1e5, 1e4], [0.5, 0.6], 1.0), "`alpha` must sum to 1"),
+        (lambda: g.GMS(ST, [1e5, -1e4], [0.5, 0.5], 1.0), "`k` must be > 0"),
+        (lambda: g.GMS(ST, [1e5, 1e4], [0.5, 0.6], 1.0), "`alpha`.*must sum to 1"),
         (lambda: g.GMS(ST, [1e5], [0.5, 0.5], 1.0), "`alpha` has length 2 but `k` has length 1"),
         (lambda: g.GMS(ST, [], [], 1.0), "`k` is empty"),
         (lambda: g.GMS(ST, [1e5], [1.0], 0.0), "`c` must be > 0"),
         (lambda: g.GMS(ST, [1e5], [1.0], 1.0, slip_law="fast"), "`slip_law`"),
         (lambda: g.Stribeck(0.1, 0.2, vs=0.0), "`vs` must be > 0"),
         (lambda: g.Stribeck(-0.1, 0.2, 1e-3), "`fc` must be >= 0"),
-        (lambda: g.Stribeck(float("nan"), 0.2, 1e-3), "`fc` must be finite"),
+        (lambda: g.Stribeck(float("nan"), 0.2, 1e-3), "`fc`.*must be finite"),
         (lambda: g.StaticFriction(ST, sigma=-1.0), "`sigma` must be >= 0"),
         (lambda: g.LuGre(ST, sigma0=-5.0), "`sigma0` must be > 0"),
         (lambda: g.MaxwellSlip([1e5, 1e4], [0.1]), "`w` has length 1"),
         (lambda: g.Plant(a=1.0, b=1.0, c=-3.0), "`c` must be >= 0"),
         (lambda: g.Plant.from_mass(-2.0), "`mass` must be > 0"),
         (lambda: g.Plant(1.0, 1.0, 1.0, delay=-1e-3), "`delay` must be >= 0"),
-        (lambda: g.PID(1.0, u_min=1.0, u_max=-1.0), "`u_min` must be < `u_max`"),
+        (lambda: g.PID(1.0, u_min=1.0, u_max=-1.0), "`u_min`.*u_min < u_max"),
         (lambda: g.simulate_friction(presets.paper_gms(), T, np.zeros(5)), "`position` has length 5 but `t` has length 11"),
         (lambda: g.simulate_friction(presets.paper_gms(), T, np.r_[np.zeros(10), np.nan]), "`position` has a non-finite value .* at index 10"),
         (lambda: g.simulate_friction(presets.paper_gms(), T, np.r_[np.zeros(10), np.inf]), "`position` has a non-finite value"),
@@ -61,8 +61,10 @@ def test_core_errors_reach_python_as_the_same_classes():
         _gmsfric.FrictionSpec.gms(0.1, 0.2, 1e-3, 1.0, [1.0, -1.0], [0.5, 0.5], 1.0, 0.0)
     spec = presets.paper_gms()._native
     with pytest.raises(g.InvalidInputError, match="`t` must be strictly increasing, but element 2"):
-        spec.simulate_position(np.array([0.0, 1.0, 0.5]), np.zeros(3))
+        _gmsfric.simulate_friction([spec], np.array([0.0, 1.0, 0.5]), np.zeros((1, 3)))
     with pytest.raises(g.InvalidInputError, match="`position` has a non-finite value"):
-        spec.simulate_position(np.array([0.0, 1.0]), np.array([0.0, np.nan]))
+        _gmsfric.simulate_friction([spec], np.array([0.0, 1.0]), np.array([[0.0, np.nan]]))
     with pytest.raises(g.InvalidInputError, match="`dt` must be > 0"):
-        _gmsfric.discretize_plant((1.0, 1.0, 1.0, 0.0, 1.0), -1.0)
+        _gmsfric.PlantSpec(1.0, 1.0, 1.0, 0.0, 1.0).discretize(-1.0)
+    with pytest.raises(g.InvalidInputError, match="`c` must be >= 0"):
+        _gmsfric.PlantSpec(1.0, 1.0, -1.0, 0.0, 1.0)

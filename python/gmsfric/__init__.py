@@ -7,9 +7,10 @@ delayed plant; this package exposes the models, identification, analysis and plo
 from __future__ import annotations
 
 from ._gmsfric import __version__
-from .errors import DataError, GmsfricError, IdentificationError, InvalidInputError, SimulationError
+from .axis import AxisModel, AxisUnits, Compliance, Covariance, Drift, Effects, PositionSeries
+from .errors import DataError, GmsfricError, IdentificationError, InvalidInputError, ResourceError, SimulationError
 from .models import GMS, LuGre, MaxwellSlip, StaticFriction, Stribeck, simulate_friction
-from .system import PID, PIDDOB, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
+from .system import PID, PIDDOB, Cascade, ClosedLoopResult, Plant, RunOptions, simulate_closed_loop
 
 # Subpackages load on first use (they pull in scipy): ``gmsfric.identify.fit_static_map(...)``.
 _SUBMODULES = ("identify", "loop", "glitch", "batch", "presets", "io", "plotting", "demo")
@@ -36,7 +37,16 @@ __all__ = [
     "Cascade",
     "ClosedLoopResult",
     "simulate_closed_loop",
+    "RunOptions",
+    "AxisModel",
+    "AxisUnits",
+    "Effects",
+    "PositionSeries",
+    "Drift",
+    "Compliance",
+    "Covariance",
     "GmsfricError",
+    "ResourceError",
     "InvalidInputError",
     "SimulationError",
     "DataError",

@@ -16,9 +16,11 @@ def as_array(name: str, values: ArrayLike, *, min_len: int = 1) -> NDArray[np.fl
     Raises ``InvalidInputError`` naming ``name`` for non-numeric, non-1-D, empty, too short or
     non-finite input.
     """
+    if values is None:
+        raise InvalidInputError(f"`{name}` is missing (None)")
     try:
         arr = np.ascontiguousarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InvalidInputError(f"`{name}` must be numeric: {exc}") from None
     if arr.ndim == 0:
         arr = arr.reshape(1)
@@ -37,14 +39,41 @@ def same_length(name: str, arr: NDArray[Any], other: str, n: int) -> None:
         raise InvalidInputError(f"`{name}` has length {arr.size} but `{other}` has length {n}: they must match")
 
 
-def finite(name: str, value: float) -> float:
+def number(name: str, value: Any) -> float:
+    """``value`` as a float (NaN and inf pass: the core names them); anything that is not a real
+    number, or does not fit a double, raises ``InvalidInputError`` naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or isinstance(value, (complex, np.complexfloating)):
+        raise InvalidInputError(f"`{name}` must be a real number, got {value!r}")
     try:
-        v = float(value)
+        return float(value)
+    except OverflowError:
+        raise InvalidInputError(f"`{name}` = {value!r} does not fit a double") from None
     except (TypeError, ValueError):
         raise InvalidInputError(f"`{name}` must be a number, got {value!r}") from None
+
+
+def finite(name: str, value: float) -> float:
+    v = number(name, value)
     if not np.isfinite(v):
         raise InvalidInputError(f"`{name}` must be finite, got {v}")
     return v
+
+
+def count(name: str, value: Any, *, minimum: int = 1, maximum: int | None = None) -> int:
+    """A whole number in ``[minimum, maximum]`` (bools and non-integral floats refused)."""
+    if isinstance(value, (bool, np.bool_)):
+        raise InvalidInputError(f"`{name}` must be an integer, got {value!r}")
+    try:
+        as_int = int(value)
+        whole = as_int == value
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(f"`{name}` must be an integer, got {value!r}") from None
+    if not whole:
+        raise InvalidInputError(f"`{name}` must be an integer, got {value!r}")
+    if as_int < minimum or (maximum is not None and as_int > maximum):
+        bound = f"between {minimum} and {maximum}" if maximum is not None else f">= {minimum}"
+        raise InvalidInputError(f"`{name}` must be {bound}, got {as_int}")
+    return as_int
 
 
 def positive(name: str, value: float) -> float:

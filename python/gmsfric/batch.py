@@ -19,47 +19,57 @@ from __future__ import annotations
 import dataclasses
 import itertools
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, Optional, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _gmsfric
 from ._progress import Progress
-from ._validate import as_array, finite, non_negative, positive
+from ._validate import as_array, count, number
 from .errors import InvalidInputError
 from .models import native_friction
-from .system import ClosedLoopResult, Plant, _drive_limits
+from .system import ClosedLoopResult, Plant, _measured_view, _record_for_core, _rows, axis_of, native_controller, run_inputs
+
+if TYPE_CHECKING:  # pragma: no cover
+    from typing_extensions import Unpack
+
+    from .system import RunOptions
 
 __all__ = ["BatchResult", "simulate_batch", "sweep", "grid", "simulate_friction_batch"]
 
 #: Batches of at least this many steps (runs x samples) show progress unless told otherwise.
 PROGRESS_MIN_STEPS = 20_000_000
+#: Most worker threads a batch may ask for.
+MAX_THREADS = 1024
 
 
 @dataclass(frozen=True)
 class BatchResult:
-    """Stacked closed-loop runs: every array but ``t`` has shape ``(n_runs, n_samples)``.
+    """Stacked runs: every recorded array but ``t`` has shape ``(n_runs, n_samples)``; outputs
+    not recorded are ``None``.
 
     ``result[i]`` is run ``i`` as a :class:`~gmsfric.system.ClosedLoopResult` (views, no copy).
     """
 
     t: NDArray[np.float64]
-    reference: NDArray[np.float64]
-    position: NDArray[np.float64]
-    velocity: NDArray[np.float64]
-    measured: NDArray[np.float64]
-    command: NDArray[np.float64]
-    friction: NDArray[np.float64]
-
-    @property
-    def n_runs(self) -> int:
-        return int(self.position.shape[0])
+    reference: Optional[NDArray[np.float64]]
+    position: Optional[NDArray[np.float64]] = None
+    velocity: Optional[NDArray[np.float64]] = None
+    measured: Optional[NDArray[np.float64]] = None
+    command: Optional[NDArray[np.float64]] = None
+    friction: Optional[NDArray[np.float64]] = None
+    recorded_error: Optional[NDArray[np.float64]] = None
+    n_runs: int = 0
 
     @property
     def error(self) -> NDArray[np.float64]:
         """Tracking errors ``reference - position`` (m), ``(n_runs, n_samples)``."""
-        return self.reference - self.position
+        if self.recorded_error is not None:
+            return self.recorded_error
+        if self.position is None:
+            raise InvalidInputError("the batch recorded neither `error` nor `position`")
+        return (0.0 if self.reference is None else self.reference) - self.position
 
     def __len__(self) -> int:
         return self.n_runs
@@ -67,41 +77,23 @@ class BatchResult:
     def __getitem__(self, i: int) -> ClosedLoopResult:
         if not -self.n_runs <= i < self.n_runs:
             raise IndexError(f"run {i} out of range for {self.n_runs} runs")
+
+        def row(a: Optional[NDArray[np.float64]]) -> Optional[NDArray[np.float64]]:
+            return None if a is None else a[i]
+
         return ClosedLoopResult(
             t=self.t,
-            reference=self.reference[i],
-            position=self.position[i],
-            velocity=self.velocity[i],
-            measured=self.measured[i],
-            command=self.command[i],
-            friction=self.friction[i],
+            reference=row(self.reference),
+            position=row(self.position),
+            velocity=row(self.velocity),
+            measured=row(self.measured),
+            command=row(self.command),
+            friction=row(self.friction),
+            recorded_error=row(self.recorded_error),
         )
 
     def __iter__(self) -> Iterator[ClosedLoopResult]:
         return (self[i] for i in range(self.n_runs))
-
-
-def _rows(name: str, values: ArrayLike, n_runs: int, n: int | None = None) -> NDArray[np.float64]:
-    """A C-contiguous float64 ``(1 or n_runs, n)`` array; a 1-D input becomes one shared row (a
-    view: no copy when it already is contiguous float64)."""
-    try:
-        arr = np.ascontiguousarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"`{name}` must be numeric: {exc}") from None
-    if arr.ndim == 1:
-        arr = arr.reshape(1, -1)
-    if arr.ndim != 2:
-        raise InvalidInputError(f"`{name}` must be 1-D (shared by every run) or 2-D (one row per run), got shape {arr.shape}")
-    if arr.shape[0] not in (1, n_runs):
-        raise InvalidInputError(f"`{name}` has {arr.shape[0]} rows but there are {n_runs} runs: give 1 row or one per run")
-    if arr.shape[1] == 0:
-        raise InvalidInputError(f"`{name}` is empty")
-    if n is not None and arr.shape[1] != n:
-        raise InvalidInputError(f"`{name}` has {arr.shape[1]} samples per run but `reference` has {n}: they must match")
-    if not np.isfinite(arr).all():
-        r, c = np.argwhere(~np.isfinite(arr))[0]
-        raise InvalidInputError(f"`{name}` has a non-finite value ({arr[r, c]}) at row {r}, index {c}")
-    return arr
 
 
 def _as_list(name: str, value: Any, n_runs: int) -> list[Any]:
@@ -132,46 +124,37 @@ def _progress_callback(enabled: bool | None, label: str, total: int, steps: int)
 
 
 def _threads(threads: int | None) -> int | None:
-    if threads is None:
-        return None
-    if int(threads) != threads or threads < 1:
-        raise InvalidInputError(f"`threads` must be a positive integer or None, got {threads!r}")
-    return int(threads)
+    return None if threads is None else count("threads", threads, minimum=1, maximum=MAX_THREADS)
 
 
 def simulate_batch(
-    plants: Plant | Sequence[Plant],
+    plants: Any,
     frictions: Any,
     controllers: Any,
-    reference: ArrayLike,
+    reference: ArrayLike | None,
     dt: float,
     *,
-    feedforward: ArrayLike | None = None,
-    input_disturbance: ArrayLike | None = None,
-    load_force: ArrayLike | None = None,
-    measurement_noise: ArrayLike | None = None,
-    quantization: float = 0.0,
-    drive_limit: float | tuple[float, float] | None = None,
-    initial_position: float | None = None,
-    initial_velocity: float = 0.0,
     threads: int | None = None,
     progress: bool | None = None,
+    **options: "Unpack[RunOptions]",
 ) -> BatchResult:
-    """Run many closed loops at once; arguments as :func:`gmsfric.simulate_closed_loop`.
+    """Run many closed (or open) loops at once; arguments as :func:`gmsfric.simulate_closed_loop`.
 
     Parameters
     ----------
     plants, frictions, controllers
-        One object (shared by every run) or a list with one entry per run (a friction entry may
-        be ``None``: frictionless).  The number of runs is the length of the lists.
-    reference : array_like
-        1-D (shared by every run) or 2-D ``(n_runs, n_samples)``.
-    feedforward, input_disturbance, load_force, measurement_noise : array_like, optional
-        1-D (shared) or 2-D (per run), ``n_samples`` long.
+        One object (shared by every run) or a list with one entry per run. A plant may be an
+        :class:`~gmsfric.axis.AxisModel` (then its friction entry is ``None``); a friction or
+        controller entry may be ``None`` (frictionless, open loop). The number of runs is the
+        length of the lists.
+    reference : array_like or None
+        1-D (shared by every run) or 2-D ``(n_runs, n_samples)``; ``None`` in open loop.
     threads : int, optional
         Worker threads; default every core (or ``RAYON_NUM_THREADS``).
     progress : bool, optional
         Show progress on stderr; default for batches of at least ``PROGRESS_MIN_STEPS`` steps.
+    **options
+        As :class:`~gmsfric.system.RunOptions`; arrays 1-D (shared) or 2-D (per run).
 
     Returns
     -------
@@ -187,51 +170,32 @@ def simulate_batch(
     plant_list = _as_list("plants", plants, n_runs)
     friction_list = _as_list("frictions", frictions, n_runs)
     controller_list = _as_list("controllers", controllers, n_runs)
-    dt = positive("dt", dt)
-    for i, p in enumerate(plant_list):
-        if not isinstance(p, Plant):
-            raise InvalidInputError(f"`plants[{i}]` must be a Plant, got {type(p).__name__}")
-    native_ctrl = []
-    for i, c in enumerate(controller_list):
-        make = getattr(c, "_native", None)
-        if not callable(make):
-            raise InvalidInputError(f"`controllers[{i}]` must be a gmsfric controller (PID, Cascade, ...), got {type(c).__name__}")
-        native_ctrl.append(make(dt))
-    native_fric = [native_friction(f, f"frictions[{i}]") for i, f in enumerate(friction_list)]
-    ref = _rows("reference", reference, n_runs)
-    n = ref.shape[1]
-    optional = {
-        name: None if v is None else _rows(name, v, n_runs, n)
-        for name, v in (("feedforward", feedforward), ("input_disturbance", input_disturbance), ("load_force", load_force), ("measurement_noise", measurement_noise))
-    }
-    lo, hi = _drive_limits(drive_limit)
+    axes = [axis_of(p, f, (f"plants[{i}]", f"frictions[{i}]")) for i, (p, f) in enumerate(zip(plant_list, friction_list))]
+    native_ctrl = [native_controller(c, f"controllers[{i}]") for i, c in enumerate(controller_list)]
+    inputs, record, every = run_inputs(reference, n_runs, options, allow_2d=True)
+    n = next(a.shape[1] for a in (inputs["reference"], inputs["feedforward"]) if a is not None)
     bar, report = _progress_callback(progress, "batch runs", n_runs, n_runs * n)
     try:
-        out = _gmsfric.simulate_closed_loop_batch(
-            [p.params for p in plant_list],
-            native_fric,
-            native_ctrl,
-            ref,
-            dt,
-            optional["feedforward"],
-            optional["input_disturbance"],
-            optional["load_force"],
-            optional["measurement_noise"],
-            non_negative("quantization", quantization),
-            lo,
-            hi,
-            None if initial_position is None else finite("initial_position", initial_position),
-            finite("initial_velocity", initial_velocity),
-            _threads(threads),
-            report,
-        )
+        out = _gmsfric.simulate(axes, native_ctrl, number("dt", dt), inputs, _record_for_core(record, inputs), every, _threads(threads), report)
         if report is not None:
             report(n_runs, n_runs)
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
-    reference_2d = np.broadcast_to(ref, (n_runs, n))
-    return BatchResult(t=np.arange(n) * dt, reference=reference_2d, **out)
+    out = _measured_view(out, record, inputs)
+    ref = None if inputs["reference"] is None else np.broadcast_to(inputs["reference"][:, ::every], (n_runs, -(-n // every)))
+    t = np.arange(0, n, every, dtype=np.float64) * dt
+    return BatchResult(
+        t=t,
+        reference=ref,
+        position=out.get("position"),
+        velocity=out.get("velocity"),
+        measured=out.get("measured"),
+        command=out.get("command"),
+        friction=out.get("friction"),
+        recorded_error=out.get("error"),
+        n_runs=n_runs,
+    )
 
 
 def _replace_path(obj: Any, path: Sequence[str], value: Any) -> Any:
@@ -308,11 +272,13 @@ def simulate_friction_batch(
     if not models:
         raise InvalidInputError("`models` is empty")
     specs = [native_friction(m, f"models[{i}]") for i, m in enumerate(models)]
+    if any(s is None for s in specs):
+        raise InvalidInputError("`models` must not contain None")
     t_arr = as_array("t", t, min_len=2)
-    x = _rows("position", position, len(models), t_arr.size)
+    x = _rows("position", position, len(models), t_arr.size, allow_2d=True)
     bar, report = _progress_callback(progress, "friction runs", len(models), len(models) * t_arr.size)
     try:
-        forces = _gmsfric.simulate_friction_batch(specs, t_arr, x, _threads(threads), report)
+        forces = _gmsfric.simulate_friction(specs, t_arr, x, _threads(threads), report)
         if report is not None:
             report(len(models), len(models))
         return forces

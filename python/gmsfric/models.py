@@ -1,7 +1,8 @@
 """Friction models: the Stribeck curve, the static map, GMS, Maxwell-slip and LuGre.
 
-All quantities are SI (m, m/s, N, s).  Each model is an immutable value object validated on
-construction; the compiled core (``gmsfric._gmsfric``) does the simulation.
+All quantities are SI (m, m/s, N, s; rad, rad/s, N m for rotary axes).  Each model is an
+immutable value object validated on construction by the compiled core (``gmsfric._gmsfric``),
+which holds every argument rule and does the simulation; this module only coerces numbers.
 
 Interpretation of the paper's garbled GMS equation (eq. 4): a slipping block relaxes towards
 ``sign(v) * alpha_i * s(v)``.  ``slip_law="time"`` (default, Al-Bender, Lampaert & Swevers 2005)
@@ -14,17 +15,32 @@ and return to sticking when the velocity reverses or stops.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
-from typing import Literal, Sequence, Union
+from typing import ClassVar, Literal, Sequence, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _gmsfric
-from ._validate import as_array, finite, non_negative, positive, same_length
+from ._validate import as_array, number, same_length
 from .errors import InvalidInputError
 
 SlipLaw = Literal["time", "displacement"]
+
+
+class NativeBacked:
+    """Mixin of the frozen model classes whose core twin (``_native``) is built and validated in
+    ``__post_init__``: the twin is left out of pickles (it cannot be pickled) and rebuilt on
+    unpickling, so models travel to worker processes (``concurrent.futures``, dask)."""
+
+    def __getstate__(self) -> dict[str, object]:
+        state = dict(self.__dict__)
+        state.pop("_native", None)
+        return state
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        for key, value in state.items():
+            object.__setattr__(self, key, value)
+        self.__post_init__()  # type: ignore[attr-defined]
 
 
 @dataclass(frozen=True)
@@ -49,10 +65,10 @@ class Stribeck:
     delta: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("fc", "fs"):
-            object.__setattr__(self, name, non_negative(name, getattr(self, name)))
-        object.__setattr__(self, "vs", positive("vs", self.vs))
-        object.__setattr__(self, "delta", positive("delta", self.delta))
+        for name in ("fc", "fs", "vs", "delta"):
+            object.__setattr__(self, name, number(name, getattr(self, name)))
+        # The core holds the rules (fc, fs >= 0; vs, delta > 0): a map with this curve checks them.
+        _gmsfric.FrictionSpec.static_map(*self.params, 0.0)
 
     def __call__(self, v: ArrayLike) -> NDArray[np.float64]:
         """Evaluate ``s(v)`` (N) on velocities ``v`` (m/s)."""
@@ -65,7 +81,7 @@ class Stribeck:
 
 
 @dataclass(frozen=True)
-class StaticFriction:
+class StaticFriction(NativeBacked):
     """Static friction map ``F(v) = sign(v) s(v) + sigma v + offset`` (paper eq. 2).
 
     In closed-loop simulation the map is set-valued at ``v = 0`` (stiction): the contact sticks
@@ -84,37 +100,35 @@ class StaticFriction:
         ``F(v_linear)``, so the contact can never stick.  ``0`` (default) keeps true stiction.
     """
 
+    _native: ClassVar[_gmsfric.FrictionSpec]
+
     stribeck: Stribeck
     sigma: float = 0.0
     offset: float = 0.0
     v_linear: float = 0.0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.stribeck, Stribeck):
-            raise InvalidInputError(f"`stribeck` must be a Stribeck, got {type(self.stribeck).__name__}")
-        object.__setattr__(self, "sigma", non_negative("sigma", self.sigma))
-        object.__setattr__(self, "offset", finite("offset", self.offset))
-        object.__setattr__(self, "v_linear", non_negative("v_linear", self.v_linear))
+        _check_type("stribeck", self.stribeck, Stribeck)
+        for name in ("sigma", "offset", "v_linear"):
+            object.__setattr__(self, name, number(name, getattr(self, name)))
+        object.__setattr__(self, "_native", _gmsfric.FrictionSpec.static_map(*self.stribeck.params, self.sigma, self.offset, self.v_linear))
 
     def force(self, v: ArrayLike) -> NDArray[np.float64]:
         """Friction force (N) at velocities ``v`` (m/s); ``F(0) = offset``."""
-        return _gmsfric.static_map_force(*self.stribeck.params, self.sigma, as_array("v", v), self.offset, self.v_linear)
-
-    @cached_property
-    def _native(self) -> _gmsfric.FrictionSpec:
-        return _gmsfric.FrictionSpec.static_map(*self.stribeck.params, self.sigma, self.offset, self.v_linear)
+        return self._native.static_force(as_array("v", v))
 
 
-def _positive_vector(name: str, values: ArrayLike) -> tuple[float, ...]:
-    arr = as_array(name, values)
-    bad = np.flatnonzero(arr <= 0)
-    if bad.size:
-        raise InvalidInputError(f"`{name}` must be > 0 everywhere, got {arr[bad[0]]} at index {bad[0]} (negative or zero stiffness)")
-    return tuple(float(x) for x in arr)
+def _check_type(name: str, value: object, kind: type) -> None:
+    if not isinstance(value, kind):
+        raise InvalidInputError(f"`{name}` must be a {kind.__name__}, got {type(value).__name__}")
+
+
+def _vector(name: str, values: ArrayLike) -> tuple[float, ...]:
+    return tuple(float(x) for x in as_array(name, values))
 
 
 @dataclass(frozen=True)
-class GMS:
+class GMS(NativeBacked):
     """Generalized Maxwell-slip model with N elasto-slip blocks (paper eqs. 3-5).
 
     Parameters
@@ -135,6 +149,8 @@ class GMS:
         Reading of the paper's eq. 4, see the module docstring.
     """
 
+    _native: ClassVar[_gmsfric.FrictionSpec]
+
     stribeck: Stribeck
     k: Sequence[float]
     alpha: Sequence[float]
@@ -143,23 +159,15 @@ class GMS:
     slip_law: SlipLaw = "time"
 
     def __post_init__(self) -> None:
-        if not isinstance(self.stribeck, Stribeck):
-            raise InvalidInputError(f"`stribeck` must be a Stribeck, got {type(self.stribeck).__name__}")
-        k = _positive_vector("k", self.k)
-        alpha = as_array("alpha", self.alpha)
-        same_length("alpha", alpha, "k", len(k))
-        if np.any(alpha < 0):
-            raise InvalidInputError(f"`alpha` must be >= 0, got {alpha.min()}")
-        if abs(alpha.sum() - 1.0) > 1e-6:
-            raise InvalidInputError(
-                f"`alpha` must sum to 1 (fractions), got {alpha.sum():.6g}; use GMS.from_break_forces for forces in N"
-            )
-        object.__setattr__(self, "k", k)
-        object.__setattr__(self, "alpha", tuple(float(a) for a in alpha))
-        object.__setattr__(self, "c", positive("c", self.c))
-        object.__setattr__(self, "sigma", non_negative("sigma", self.sigma))
-        if self.slip_law not in ("time", "displacement"):
+        _check_type("stribeck", self.stribeck, Stribeck)
+        object.__setattr__(self, "k", _vector("k", self.k))
+        object.__setattr__(self, "alpha", _vector("alpha", self.alpha))
+        object.__setattr__(self, "c", number("c", self.c))
+        object.__setattr__(self, "sigma", number("sigma", self.sigma))
+        if not isinstance(self.slip_law, str):
             raise InvalidInputError(f"`slip_law` must be 'time' or 'displacement', got {self.slip_law!r}")
+        spec = _gmsfric.FrictionSpec.gms(*self.stribeck.params, list(self.k), list(self.alpha), self.c, self.sigma, self.slip_law)
+        object.__setattr__(self, "_native", spec)
 
     @classmethod
     def from_break_forces(
@@ -182,7 +190,7 @@ class GMS:
         ``stribeck`` the level is constant at ``sum(w)`` (a Maxwell-slip-like GMS).
         """
         w_arr = as_array("w", w)
-        if np.any(w_arr < 0) or w_arr.sum() <= 0:
+        if np.any(w_arr < 0) or not w_arr.sum() > 0:
             raise InvalidInputError("`w` (break forces) must be >= 0 with a positive sum")
         total = float(w_arr.sum())
         if stribeck is None:
@@ -214,41 +222,31 @@ class GMS:
         """The static map the model settles on at constant velocity."""
         return StaticFriction(self.stribeck, self.sigma)
 
-    @cached_property
-    def _native(self) -> _gmsfric.FrictionSpec:
-        return _gmsfric.FrictionSpec.gms(*self.stribeck.params, list(self.k), list(self.alpha), self.c, self.sigma, self.slip_law)
-
 
 @dataclass(frozen=True)
-class MaxwellSlip:
+class MaxwellSlip(NativeBacked):
     """Plain Maxwell-slip: blocks of stiffness ``k_i`` (N/m) that slip instantly at ``w_i`` (N)."""
+
+    _native: ClassVar[_gmsfric.FrictionSpec]
 
     k: Sequence[float]
     w: Sequence[float]
     sigma: float = 0.0
 
     def __post_init__(self) -> None:
-        k = _positive_vector("k", self.k)
-        w = as_array("w", self.w)
-        same_length("w", w, "k", len(k))
-        if np.any(w < 0):
-            raise InvalidInputError(f"`w` must be >= 0, got {w.min()}")
-        object.__setattr__(self, "k", k)
-        object.__setattr__(self, "w", tuple(float(x) for x in w))
-        object.__setattr__(self, "sigma", non_negative("sigma", self.sigma))
+        object.__setattr__(self, "k", _vector("k", self.k))
+        object.__setattr__(self, "w", _vector("w", self.w))
+        object.__setattr__(self, "sigma", number("sigma", self.sigma))
+        object.__setattr__(self, "_native", _gmsfric.FrictionSpec.maxwell_slip(list(self.k), list(self.w), self.sigma))
 
     def virgin_curve(self, x: ArrayLike) -> NDArray[np.float64]:
         """``sign(x) sum_i min(k_i |x|, w_i)`` (N)."""
         x = as_array("x", x)
         return np.sign(x) * np.minimum(np.asarray(self.k)[:, None] * np.abs(x)[None, :], np.asarray(self.w)[:, None]).sum(axis=0)
 
-    @cached_property
-    def _native(self) -> _gmsfric.FrictionSpec:
-        return _gmsfric.FrictionSpec.maxwell_slip(list(self.k), list(self.w), self.sigma)
-
 
 @dataclass(frozen=True)
-class LuGre:
+class LuGre(NativeBacked):
     """LuGre model ``dz/dt = v - sigma0 |v| z / s(v)``, ``F = sigma0 z + sigma1 dz/dt + sigma2 v``.
 
     Parameters
@@ -262,21 +260,18 @@ class LuGre:
         Viscous coefficient (N s/m).
     """
 
+    _native: ClassVar[_gmsfric.FrictionSpec]
+
     stribeck: Stribeck
     sigma0: float
     sigma1: float = 0.0
     sigma2: float = 0.0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.stribeck, Stribeck):
-            raise InvalidInputError(f"`stribeck` must be a Stribeck, got {type(self.stribeck).__name__}")
-        object.__setattr__(self, "sigma0", positive("sigma0", self.sigma0))
-        object.__setattr__(self, "sigma1", non_negative("sigma1", self.sigma1))
-        object.__setattr__(self, "sigma2", non_negative("sigma2", self.sigma2))
-
-    @cached_property
-    def _native(self) -> _gmsfric.FrictionSpec:
-        return _gmsfric.FrictionSpec.lugre(*self.stribeck.params, self.sigma0, self.sigma1, self.sigma2)
+        _check_type("stribeck", self.stribeck, Stribeck)
+        for name in ("sigma0", "sigma1", "sigma2"):
+            object.__setattr__(self, name, number(name, getattr(self, name)))
+        object.__setattr__(self, "_native", _gmsfric.FrictionSpec.lugre(*self.stribeck.params, self.sigma0, self.sigma1, self.sigma2))
 
 
 FrictionModel = Union[StaticFriction, GMS, MaxwellSlip, LuGre]
@@ -317,15 +312,18 @@ def simulate_friction(
         Force (N) at ``t``.  Models with memory start from the virgin state.
     """
     spec = native_friction(model, "model")
-    assert spec is not None
+    if spec is None:
+        raise InvalidInputError("`model` must be a gmsfric friction model (StaticFriction, GMS, MaxwellSlip, LuGre), got None")
     t_arr = as_array("t", t, min_len=2)
     if (position is None) == (velocity is None):
         raise InvalidInputError("give exactly one of `position` or `velocity`")
     if position is None:
-        v = as_array("velocity", velocity)  # type: ignore[arg-type]
+        v = as_array("velocity", velocity)
         same_length("velocity", v, "t", t_arr.size)
         x = np.concatenate(([0.0], np.cumsum(v[1:] * np.diff(t_arr))))
+        if not np.isfinite(x).all():
+            raise InvalidInputError("`velocity` integrates to a non-finite position")
     else:
         x = as_array("position", position)
         same_length("position", x, "t", t_arr.size)
-    return spec.simulate_position(t_arr, x)
+    return _gmsfric.simulate_friction([spec], t_arr, x.reshape(1, -1), 1)[0]

@@ -32,29 +32,39 @@ Readings (default ``PaperReading()``):
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from typing import Any
 
+from . import _gmsfric
 from .models import GMS, StaticFriction, Stribeck
 from .system import PID, Cascade, Plant
 
-PAPER_TABLE1 = {"fc": 0.1826, "fs": 210.0, "vs_mm_s": 450.0, "sigma_N_s_per_mm": 6.9846, "delta": 1.0}
-PAPER_TABLE2_W_N = (0.0330, 0.0570, 0.0132, 0.0026)
-PAPER_TABLE2_K_N_PER_MM = (3264.7059, 8.8941, 23.7869, 2.6131)
-PAPER_EQ1 = {"a_mm": 19.85, "b": 168.4, "c": 176.8, "delay": 1.29e-3}
+#: The reference numbers (the paper as printed, EMPS, the default reading), from the one data file
+#: that the core's reference problems also read (``crates/gms-core/data/reference.json``).
+REFERENCE: dict[str, Any] = json.loads(_gmsfric.reference_data())
+
+_T1 = REFERENCE["paper"]["table1"]
+PAPER_TABLE1 = {"fc": _T1["fc_N"], "fs": _T1["fs_printed"], "vs_mm_s": _T1["vs_printed_mm_per_s"], "sigma_N_s_per_mm": _T1["sigma_printed_N_s_per_mm"], "delta": _T1["delta"]}
+PAPER_TABLE2_W_N = tuple(REFERENCE["paper"]["table2"]["w_N"])
+PAPER_TABLE2_K_N_PER_MM = tuple(REFERENCE["paper"]["table2"]["k_N_per_mm"])
+_EQ1 = REFERENCE["paper"]["eq1"]
+PAPER_EQ1 = {"a_mm": _EQ1["a_mm_per_V_s2"], "b": _EQ1["b_per_s"], "c": _EQ1["c_per_s2"], "delay": _EQ1["delay_s"]}
+_READING = REFERENCE["paper"]["reading"]
 
 
 @dataclass(frozen=True)
 class PaperReading:
     """How the paper's printed numbers are turned into SI parameters (see the module doc)."""
 
-    fs_scale: float = 1e-3
-    vs_scale: float = 1e-3
-    sigma_unit: float = 1.0
+    fs_scale: float = _READING["fs_scale"]
+    vs_scale: float = _READING["vs_scale"]
+    sigma_unit: float = _READING["sigma_unit"]
     gms_level: str = "stribeck"
     gms_c: float | None = None
     slip_law: str = "time"
-    force_per_volt: float = 1.0
-    drive_limit: float = 100.0
+    force_per_volt: float = _READING["force_per_volt"]
+    drive_limit: float = _READING["drive_limit_V"]
 
     @classmethod
     def literal(cls) -> "PaperReading":
@@ -102,7 +112,8 @@ def paper_pid(reading: PaperReading = PaperReading()) -> PID:
     amplifier the paper mentions.  (Eq. 1 has a DC gain a/c = 0.11 mm/V, so holding the 10 mm
     reference of Section 4.2 takes about 89 V: the limit must be the amplified one.)"""
     lim = reading.drive_limit
-    return PID(kp=5.0e5, ki=2.5e6, kd=1.0e3, tf=5e-4, u_min=-lim, u_max=lim)
+    g = REFERENCE["paper"]["pid"]
+    return PID(kp=g["kp"], ki=g["ki"], kd=g["kd"], tf=g["tf_s"], u_min=-lim, u_max=lim)
 
 
 @dataclass(frozen=True)
@@ -119,12 +130,13 @@ class Table3Reading:
     static model's A', B' (unchanged) and the GMS column holds A' = 180.40, B' = 2.40.
     """
 
-    static: tuple[float, float, float] = (19.85, 2.40, 176.80)
-    gms: tuple[float, float, float] = (180.40, 168.40, 176.80)
+    static: tuple[float, float, float] = tuple(REFERENCE["paper"]["table3"]["static"])  # type: ignore[assignment]
+    gms: tuple[float, float, float] = tuple(REFERENCE["paper"]["table3"]["gms"])  # type: ignore[assignment]
 
     @classmethod
     def static_unchanged(cls) -> "Table3Reading":
-        return cls(static=(19.85, 168.40, 176.80), gms=(180.40, 2.40, 176.80))
+        alt = REFERENCE["paper"]["table3"]["static_unchanged"]
+        return cls(static=tuple(alt["static"]), gms=tuple(alt["gms"]))  # type: ignore[arg-type]
 
     def plant(self, model: str, reading: PaperReading = PaperReading()) -> Plant:
         """The revised plant for ``model`` (``"static"`` or ``"gms"``) in SI, with eq. 1's delay."""
@@ -138,10 +150,13 @@ class Table3Reading:
 
 # --- EMPS benchmark (Janot, Gautier, Brunot 2019) ------------------------------------------------
 
-EMPS_GTAU = 35.15
-EMPS_KP = 160.18
-EMPS_KV = 243.45
-EMPS_REFERENCE_MODEL = {"M": 95.11, "Fv": 203.5, "Fc": 20.39, "offset": -3.16}
+_EMPS = REFERENCE["emps"]
+EMPS_GTAU = _EMPS["gtau_N_per_V"]
+EMPS_KP = _EMPS["kp_per_s"]
+EMPS_KV = _EMPS["kv_V_s_per_m"]
+EMPS_DRIVE_LIMIT = _EMPS["drive_limit_V"]
+_RM = _EMPS["reference_model"]
+EMPS_REFERENCE_MODEL = {"M": _RM["M_kg"], "Fv": _RM["Fv_N_s_per_m"], "Fc": _RM["Fc_N"], "offset": _RM["offset_N"]}
 
 
 def emps_plant() -> Plant:
@@ -158,7 +173,7 @@ def emps_friction() -> StaticFriction:
 
 def emps_controller() -> Cascade:
     """EMPS cascade controller with the 10 V drive limit."""
-    return Cascade(kp=EMPS_KP, kv=EMPS_KV, u_min=-10.0, u_max=10.0)
+    return Cascade(kp=EMPS_KP, kv=EMPS_KV, u_min=-EMPS_DRIVE_LIMIT, u_max=EMPS_DRIVE_LIMIT)
 
 
 __all__ = [

@@ -261,6 +261,7 @@ pub fn simulate_generic_into<F: FrictionElement, C: Controller>(
     }
     let d = plant.discretize(input.dt)?;
     controller.prepare(input.dt)?;
+    controller.begin(input.initial_position, input.initial_velocity);
     friction.begin(input.initial_position, input.initial_velocity);
     // Re-slice to exactly m so the indexing below needs no bounds checks.
     let ClosedLoopBuffers { position, velocity, measured, command, friction: fric_out, error, .. } = out;

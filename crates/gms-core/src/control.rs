@@ -11,6 +11,9 @@ pub trait Controller {
     /// Set the sample time before a run (coefficients that depend on it are computed here, and
     /// checked: a filter above the Nyquist frequency, an observer history that cannot fit).
     fn prepare(&mut self, dt: f64) -> Result<()>;
+    /// Called once before a run, after `prepare` and `reset`, with the initial position and
+    /// velocity: a controller that differentiates the position starts with the right velocity.
+    fn begin(&mut self, _position: f64, _velocity: f64) {}
     /// Controller output for sample `k` from the reference and the measured position.
     fn update(&mut self, reference: f64, measured: f64) -> f64;
     /// Back to the initial state.
@@ -139,6 +142,15 @@ impl Controller for Cascade {
     fn prepare(&mut self, dt: f64) -> Result<()> {
         self.inv_dt = 1.0 / check::step("dt", dt)?;
         Ok(())
+    }
+    /// A run that starts moving: the FIR's memory is set so that the first velocity it reports
+    /// is the initial velocity (as if the axis had been moving before the first sample).
+    fn begin(&mut self, position: f64, velocity: f64) {
+        if velocity != 0.0 {
+            let dt = 1.0 / self.inv_dt;
+            self.prev_q = Some(position - velocity * dt);
+            self.prev_qf = position - 1.5 * velocity * dt;
+        }
     }
     #[inline]
     fn update(&mut self, reference: f64, measured: f64) -> f64 {

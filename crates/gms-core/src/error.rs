@@ -75,7 +75,7 @@ pub mod check {
         if value.is_finite() {
             Ok(value)
         } else {
-            Err(CoreError::NonFinite { name, index: 0, value })
+            Err(CoreError::InvalidParameter { name, reason: format!("must be finite, got {value}") })
         }
     }
 

@@ -201,3 +201,17 @@ fn recording_a_subset_with_decimation_gives_the_same_samples() {
         assert_eq!(fric[j], full.friction[k]);
     }
 }
+
+#[test]
+fn the_cascade_starts_with_the_initial_velocity() {
+    // Free mass coasting at v0 with a zero reference slope: a cascade that knows the motion
+    // brakes from the first sample (its velocity feedback sees v0), one that starts from rest
+    // reads zero velocity on the first sample.
+    let (dt, v0) = (1e-3, 0.05);
+    let r = vec![0.0; 3];
+    let ctrl = ControllerModel::Cascade(Cascade::new(0.0, 10.0, f64::NEG_INFINITY, f64::INFINITY).unwrap());
+    let mut input = ClosedLoopInput::new(&r, dt);
+    input.initial_velocity = v0;
+    let out = simulate(&rigid(1.0), None, None, Some(&ctrl), &input).unwrap();
+    assert!((out.command[0] + 10.0 * v0).abs() < 1e-12, "first command {} vs {}", out.command[0], -10.0 * v0);
+}

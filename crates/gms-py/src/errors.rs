@@ -2,10 +2,12 @@
 //!
 //! Hierarchy (created at import, re-exported by `gmsfric.errors`):
 //! `GmsfricError(Exception)`; `InvalidInputError(GmsfricError, ValueError)` for bad arguments;
-//! `SimulationError(GmsfricError, RuntimeError)` for runs that diverge.
+//! `SimulationError(GmsfricError, RuntimeError)` for runs that produce non-finite values;
+//! `ResourceError(GmsfricError, MemoryError)` for work that cannot fit in memory. An interrupted
+//! run (Ctrl-C) is a `KeyboardInterrupt`.
 
 use gms_core::CoreError;
-use pyo3::exceptions::{PyException, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyMemoryError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyTuple, PyType};
@@ -14,6 +16,7 @@ pyo3::create_exception!(_gmsfric, GmsfricError, PyException, "Base class of ever
 
 static INVALID_INPUT: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static SIMULATION: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+static RESOURCE: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 
 fn subclass(py: Python<'_>, name: &str, second_base: Bound<'_, PyType>, doc: &str) -> PyResult<Py<PyType>> {
     let bases = PyTuple::new(py, [py.get_type::<GmsfricError>(), second_base])?;
@@ -36,6 +39,10 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         subclass(py, "SimulationError", py.get_type::<PyRuntimeError>(), "A simulation could not be completed (it diverged).")
     })?;
     m.add("SimulationError", sim.bind(py))?;
+    let res = RESOURCE.get_or_try_init(py, || {
+        subclass(py, "ResourceError", py.get_type::<PyMemoryError>(), "The work would need more memory than is available (the message gives the size asked for).")
+    })?;
+    m.add("ResourceError", res.bind(py))?;
     Ok(())
 }
 
@@ -52,13 +59,26 @@ pub fn to_pyerr(err: CoreError) -> PyErr {
             | CoreError::Negative { .. }
             | CoreError::NotIncreasing { .. }
             | CoreError::InvalidParameter { .. } => &INVALID_INPUT,
-            CoreError::Diverged { .. } => &SIMULATION,
+            CoreError::NonFiniteOutput { .. } => &SIMULATION,
+            CoreError::TooLarge { .. } => &RESOURCE,
+            CoreError::Interrupted => return PyKeyboardInterrupt::new_err(msg),
         };
         match lock.get(py) {
             Some(ty) => PyErr::from_type(ty.bind(py).clone(), msg),
             None => PyValueError::new_err(msg),
         }
     })
+}
+
+/// A failed run of a batch -> the Python exception of its error, the message prefixed by the run
+/// index when there is more than one run.
+pub fn batch_err(py: Python<'_>, e: gms_core::batch::BatchError, n_runs: usize) -> PyErr {
+    let base = to_pyerr(e.error);
+    if n_runs <= 1 {
+        return base;
+    }
+    let msg = format!("run {} (of {n_runs}) failed: {}", e.run, base.value(py));
+    PyErr::from_type(base.get_type(py), msg)
 }
 
 /// `result.py()?` converts a core result at the call site.

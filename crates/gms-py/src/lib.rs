@@ -1,63 +1,26 @@
 //! `gmsfric._gmsfric`: the thin PyO3 layer over `gms-core`.
 //!
 //! It only extracts inputs (numpy arrays are borrowed, not copied), calls the core with the GIL
-//! released, and converts results (vectors move into numpy arrays without a copy). No physics.
+//! released, and converts results (vectors move into numpy arrays without a copy). No physics,
+//! and no argument rules: every model is validated by the core's constructors, whose typed errors
+//! become the package's exceptions in `errors.rs`.
 
-mod batch;
 mod errors;
+mod run;
 
-use errors::IntoPy;
+use errors::{to_pyerr, IntoPy};
 use gms_core as core;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 /// Borrow a numpy array as a slice without copying (the Python layer makes arrays contiguous
 /// float64 first, which is free when they already are).
-fn slice<'a>(name: &str, a: &'a PyReadonlyArray1<'_, f64>) -> PyResult<&'a [f64]> {
-    a.as_slice().map_err(|_| PyValueError::new_err(format!("`{name}` must be a contiguous float64 array")))
-}
-
-fn opt_slice<'a>(name: &str, a: &'a Option<PyReadonlyArray1<'_, f64>>) -> PyResult<Option<&'a [f64]>> {
-    a.as_ref().map(|a| slice(name, a)).transpose()
-}
-
-/// A zeroed output vector. Long ones are pre-faulted in one system call on Linux
-/// (`MADV_POPULATE_WRITE`): mapping the pages in bulk costs a fraction of taking one page fault
-/// per 4 KiB while the simulation writes them. Harmless where unsupported (older kernels).
-fn zeroed_output(n: usize) -> Vec<f64> {
-    let v = vec![0.0f64; n];
-    #[cfg(target_os = "linux")]
-    if n >= (1 << 16) {
-        const MADV_POPULATE_WRITE: libc::c_int = 23;
-        let page = 4096usize;
-        let start = v.as_ptr() as usize;
-        let aligned = start.div_ceil(page) * page;
-        let end = start + n * std::mem::size_of::<f64>();
-        if end > aligned {
-            // SAFETY: the range lies inside the vector's allocation, which we own; the advice
-            // only maps (zero) pages, it does not change the contents.
-            unsafe {
-                libc::madvise(aligned as *mut libc::c_void, (end - aligned) / page * page, MADV_POPULATE_WRITE);
-            }
-        }
-    }
-    v
-}
-
-/// Run a long core call with the GIL released (one helper for every long call).
-fn detached<T: Send>(py: Python<'_>, f: impl FnOnce() -> core::Result<T> + Send) -> PyResult<T> {
-    py.detach(f).py()
+fn slice<'a>(name: &'static str, a: &'a PyReadonlyArray1<'_, f64>) -> PyResult<&'a [f64]> {
+    a.as_slice().map_err(|_| to_pyerr(core::CoreError::InvalidParameter { name, reason: "must be a contiguous float64 array".into() }))
 }
 
 fn stribeck(fc: f64, fs: f64, vs: f64, delta: f64) -> PyResult<core::Stribeck> {
     core::Stribeck::new(fc, fs, vs, delta).py()
-}
-
-#[allow(clippy::too_many_arguments)]
-fn static_friction(fc: f64, fs: f64, vs: f64, delta: f64, sigma: f64, offset: f64, v_linear: f64) -> PyResult<core::StaticFriction> {
-    core::StaticFriction::new(stribeck(fc, fs, vs, delta)?, sigma).py()?.with_offset(offset).py()?.with_linear_region(v_linear).py()
 }
 
 /// A validated friction model of the core (opaque; built by the Python model classes).
@@ -73,7 +36,7 @@ impl FrictionSpec {
     #[pyo3(signature = (fc, fs, vs, delta, sigma, offset=0.0, v_linear=0.0))]
     #[allow(clippy::too_many_arguments)]
     fn static_map(fc: f64, fs: f64, vs: f64, delta: f64, sigma: f64, offset: f64, v_linear: f64) -> PyResult<Self> {
-        let map = static_friction(fc, fs, vs, delta, sigma, offset, v_linear)?;
+        let map = core::StaticFriction::new(stribeck(fc, fs, vs, delta)?, sigma).py()?.with_offset(offset).py()?.with_linear_region(v_linear).py()?;
         Ok(Self { model: core::FrictionModel::Static(core::StaticElement::new(map)) })
     }
 
@@ -85,11 +48,7 @@ impl FrictionSpec {
             "time" => core::SlipLaw::Time,
             "displacement" => core::SlipLaw::Displacement,
             other => {
-                return Err(core::CoreError::InvalidParameter {
-                    name: "slip_law",
-                    reason: format!("must be 'time' or 'displacement', got '{other}'"),
-                })
-                .py()
+                return Err(core::CoreError::InvalidParameter { name: "slip_law", reason: format!("must be 'time' or 'displacement', got '{other}'") }).py()
             }
         };
         let g = core::Gms::new(stribeck(fc, fs, vs, delta)?, k, alpha, c, sigma, law).py()?;
@@ -107,34 +66,19 @@ impl FrictionSpec {
         Ok(Self { model: core::FrictionModel::LuGre(core::LuGre::new(stribeck(fc, fs, vs, delta)?, sigma0, sigma1, sigma2).py()?) })
     }
 
-    /// Friction force along a position trajectory `x(t)` (starts from the virgin state).
-    fn simulate_position<'py>(&self, py: Python<'py>, t: PyReadonlyArray1<'py, f64>, x: PyReadonlyArray1<'py, f64>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (t, x) = (slice("t", &t)?, slice("position", &x)?);
-        let mut model = self.model.clone();
-        let out = detached(py, || core::with_friction!(&mut model, f => core::simulate_position(f, t, x)))?;
-        Ok(out.into_pyarray(py))
-    }
-
-    /// Friction force along a velocity trajectory held constant over steps of `dt`.
-    fn simulate_velocity<'py>(&self, py: Python<'py>, dt: f64, v: PyReadonlyArray1<'py, f64>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let v = slice("velocity", &v)?;
-        let mut model = self.model.clone();
-        let out = detached(py, || core::with_friction!(&mut model, f => core::simulate_velocity(f, dt, v)))?;
+    /// The static map `F(v)` (memoryless) on an array of velocities (static maps only).
+    fn static_force<'py>(&self, py: Python<'py>, v: PyReadonlyArray1<'py, f64>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let core::FrictionModel::Static(map) = &self.model else {
+            return Err(core::CoreError::InvalidParameter { name: "model", reason: "the memoryless map F(v) exists for static maps only".into() }).py();
+        };
+        let v = slice("v", &v)?;
+        let out = py.detach(|| map.map.force_many(v)).py()?;
+        run::finite_output(py, "force", &out)?;
         Ok(out.into_pyarray(py))
     }
 }
 
-/// The static map `F(v)` (memoryless) evaluated on an array of velocities.
-#[pyfunction]
-#[pyo3(signature = (fc, fs, vs, delta, sigma, v, offset=0.0, v_linear=0.0))]
-#[allow(clippy::too_many_arguments)]
-fn static_map_force<'py>(py: Python<'py>, fc: f64, fs: f64, vs: f64, delta: f64, sigma: f64, v: PyReadonlyArray1<'py, f64>, offset: f64, v_linear: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let map = static_friction(fc, fs, vs, delta, sigma, offset, v_linear)?;
-    let v = slice("v", &v)?;
-    Ok(detached(py, || map.force_many(v))?.into_pyarray(py))
-}
-
-/// A validated controller of the core.
+/// A validated controller of the core (its gains; the sample time comes from the run).
 #[pyclass(frozen, module = "gmsfric._gmsfric")]
 #[derive(Clone)]
 pub struct ControllerSpec {
@@ -144,109 +88,131 @@ pub struct ControllerSpec {
 #[pymethods]
 impl ControllerSpec {
     #[staticmethod]
-    #[allow(clippy::too_many_arguments)]
-    fn pid(kp: f64, ki: f64, kd: f64, tf: f64, u_min: f64, u_max: f64, dt: f64) -> PyResult<Self> {
-        Ok(Self { model: core::ControllerModel::Pid(core::Pid::new(kp, ki, kd, tf, u_min, u_max, dt).py()?) })
+    fn pid(kp: f64, ki: f64, kd: f64, tf: f64, u_min: f64, u_max: f64) -> PyResult<Self> {
+        Ok(Self { model: core::ControllerModel::Pid(core::Pid::new(kp, ki, kd, tf, u_min, u_max).py()?) })
     }
 
     #[staticmethod]
-    fn cascade(kp: f64, kv: f64, u_min: f64, u_max: f64, dt: f64) -> PyResult<Self> {
-        Ok(Self { model: core::ControllerModel::Cascade(core::Cascade::new(kp, kv, u_min, u_max, dt).py()?) })
+    fn cascade(kp: f64, kv: f64, u_min: f64, u_max: f64) -> PyResult<Self> {
+        Ok(Self { model: core::ControllerModel::Cascade(core::Cascade::new(kp, kv, u_min, u_max).py()?) })
     }
 
     /// PID plus a disturbance observer with the nominal plant `a / (s^2 + b s + c)`, input
     /// `delay` and a Q-filter `1 / (tau s + 1)^2` of cutoff `dob_cutoff_hz`.
     #[staticmethod]
     #[allow(clippy::too_many_arguments)]
-    fn pid_dob(kp: f64, ki: f64, kd: f64, tf: f64, u_min: f64, u_max: f64, dt: f64, a: f64, b: f64, c: f64, delay: f64, dob_cutoff_hz: f64) -> PyResult<Self> {
-        let pid = core::Pid::new(kp, ki, kd, tf, u_min, u_max, dt).py()?;
-        Ok(Self { model: core::ControllerModel::PidDob(core::control::PidDob::new(pid, a, b, c, delay, dob_cutoff_hz).py()?) })
+    fn pid_dob(kp: f64, ki: f64, kd: f64, tf: f64, u_min: f64, u_max: f64, a: f64, b: f64, c: f64, delay: f64, dob_cutoff_hz: f64) -> PyResult<Self> {
+        let pid = core::Pid::new(kp, ki, kd, tf, u_min, u_max).py()?;
+        Ok(Self { model: core::ControllerModel::PidDob(core::PidDob::new(pid, a, b, c, delay, dob_cutoff_hz).py()?) })
     }
 }
 
-fn plant(p: (f64, f64, f64, f64, f64)) -> PyResult<core::Plant> {
-    core::Plant::new(p.0, p.1, p.2, p.3, p.4).py()
+/// A validated plant `a / (s^2 + b s + c)` with input delay and force gain.
+#[pyclass(frozen, module = "gmsfric._gmsfric")]
+#[derive(Clone)]
+pub struct PlantSpec {
+    plant: core::Plant,
 }
 
-/// Closed-loop run; returns a dict of numpy arrays (position, velocity, measured, command,
-/// friction). `plant` is `(a, b, c, delay, force_gain)`.
-#[pyfunction]
-#[pyo3(signature = (plant_params, friction, controller, reference, dt, feedforward=None, input_disturbance=None, load_force=None, measurement_noise=None, quantization=0.0, drive_min=f64::NEG_INFINITY, drive_max=f64::INFINITY, initial_position=None, initial_velocity=0.0))]
-#[allow(clippy::too_many_arguments)]
-fn simulate_closed_loop<'py>(
-    py: Python<'py>,
-    plant_params: (f64, f64, f64, f64, f64),
-    friction: Option<&FrictionSpec>,
-    controller: &ControllerSpec,
-    reference: PyReadonlyArray1<'py, f64>,
-    dt: f64,
-    feedforward: Option<PyReadonlyArray1<'py, f64>>,
-    input_disturbance: Option<PyReadonlyArray1<'py, f64>>,
-    load_force: Option<PyReadonlyArray1<'py, f64>>,
-    measurement_noise: Option<PyReadonlyArray1<'py, f64>>,
-    quantization: f64,
-    drive_min: f64,
-    drive_max: f64,
-    initial_position: Option<f64>,
-    initial_velocity: f64,
-) -> PyResult<Bound<'py, PyDict>> {
-    let p = plant(plant_params)?;
-    let mut input = core::ClosedLoopInput::new(slice("reference", &reference)?, dt);
-    input.feedforward = opt_slice("feedforward", &feedforward)?;
-    input.input_disturbance = opt_slice("input_disturbance", &input_disturbance)?;
-    input.load_force = opt_slice("load_force", &load_force)?;
-    input.measurement_noise = opt_slice("measurement_noise", &measurement_noise)?;
-    input.quantization = quantization;
-    input.drive_min = drive_min;
-    input.drive_max = drive_max;
-    if let Some(x0) = initial_position {
-        input.initial_position = x0;
+#[pymethods]
+impl PlantSpec {
+    #[new]
+    fn new(a: f64, b: f64, c: f64, delay: f64, force_gain: f64) -> PyResult<Self> {
+        Ok(Self { plant: core::Plant::new(a, b, c, delay, force_gain).py()? })
     }
-    input.initial_velocity = initial_velocity;
-    let mut fric = friction.map(|f| f.model.clone());
-    let mut ctrl = controller.model.clone();
-    // The core writes into zeroed vectors (calloc: pages appear as they are written), which then
-    // become the numpy arrays without a copy.
-    // Without noise or quantisation the measured position is the true one: not recorded twice
-    // (the dict then has `measured = None`).
-    let record_measured = input.measurement_noise.is_some() || input.quantization > 0.0;
-    let n = input.reference.len();
-    let mut out = core::ClosedLoopOutput {
-        position: zeroed_output(n),
-        velocity: zeroed_output(n),
-        measured: if record_measured { zeroed_output(n) } else { Vec::new() },
-        command: zeroed_output(n),
-        friction: zeroed_output(n),
+
+    /// Exact ZOH discretisation at `dt`: `(phi (2x2 row-major), gamma_old, gamma_new,
+    /// gamma_force, delay_steps)`, the fractional delay split between the two input gains.
+    fn discretize(&self, dt: f64) -> PyResult<(Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, usize)> {
+        let d = self.plant.discretize(dt).py()?;
+        let phi = vec![d.phi[(0, 0)], d.phi[(0, 1)], d.phi[(1, 0)], d.phi[(1, 1)]];
+        Ok((phi, d.gamma_old.as_slice().to_vec(), d.gamma_new.as_slice().to_vec(), d.gamma_force.as_slice().to_vec(), d.delay_steps))
+    }
+}
+
+/// A position series `g(q)`: `kind` is "legendre" (`lo`, `hi`, `coef` from P0), "fourier"
+/// (`periods`, `harmonics`, `coef` as (sin, cos) pairs) or "table" (`q0`, `dq`, `values`).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct SeriesArgs {
+    kind: String,
+    #[pyo3(default)]
+    lo: f64,
+    #[pyo3(default)]
+    hi: f64,
+    #[pyo3(default)]
+    coef: Vec<f64>,
+    #[pyo3(default)]
+    periods: Vec<f64>,
+    #[pyo3(default)]
+    harmonics: usize,
+    #[pyo3(default)]
+    q0: f64,
+    #[pyo3(default)]
+    dq: f64,
+    #[pyo3(default)]
+    values: Vec<f64>,
+}
+
+fn series(name: &'static str, a: Option<SeriesArgs>) -> PyResult<Option<core::PositionSeries>> {
+    let Some(a) = a else { return Ok(None) };
+    let s = match a.kind.as_str() {
+        "legendre" => core::PositionSeries::Legendre { lo: a.lo, hi: a.hi, coef: a.coef },
+        "fourier" => core::PositionSeries::Fourier { periods: a.periods, harmonics: a.harmonics, coef: a.coef },
+        "table" => core::PositionSeries::Table { q0: a.q0, dq: a.dq, values: a.values },
+        other => return Err(core::CoreError::InvalidParameter { name, reason: format!("unknown series kind '{other}' (legendre, fourier, table)") }).py(),
     };
-    let mut buffers = out.buffers();
-    if !record_measured {
-        buffers.measured = None;
+    s.check().py()?;
+    Ok(Some(s))
+}
+
+/// A validated axis: plant, friction model and effects, simulated together by the core.
+#[pyclass(frozen, module = "gmsfric._gmsfric")]
+#[derive(Clone)]
+pub struct AxisSpec {
+    axis: core::Axis,
+}
+
+#[pymethods]
+impl AxisSpec {
+    /// `asymmetry = (d_level, d_viscous)`; `drift = (shape, scale_s, d_level, d_viscous)` with
+    /// shape "linear" (scale = the run's duration) or "exponential" (scale = tau);
+    /// `blocks = (k, w)`; `compliance = (mass, fn_hz, zeta)`; series as [`SeriesArgs`].
+    #[new]
+    #[pyo3(signature = (plant, friction=None, *, asymmetry=None, position_force=None, position_friction=None, drift=None, blocks=None, compliance=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        plant: &PlantSpec,
+        friction: Option<&FrictionSpec>,
+        asymmetry: Option<(f64, f64)>,
+        position_force: Option<SeriesArgs>,
+        position_friction: Option<SeriesArgs>,
+        drift: Option<(String, f64, f64, f64)>,
+        blocks: Option<(Vec<f64>, Vec<f64>)>,
+        compliance: Option<(f64, f64, f64)>,
+    ) -> PyResult<Self> {
+        let drift = match drift {
+            None => None,
+            Some((shape, scale, d_level, d_viscous)) => {
+                let shape = match shape.as_str() {
+                    "linear" => core::DriftShape::Linear { duration: scale },
+                    "exponential" => core::DriftShape::Exponential { tau: scale },
+                    other => return Err(core::CoreError::InvalidParameter { name: "drift", reason: format!("unknown shape '{other}' (linear, exponential)") }).py(),
+                };
+                Some(core::Drift { shape, d_level, d_viscous })
+            }
+        };
+        let effects = core::Effects {
+            asymmetry: asymmetry.map(|(d_level, d_viscous)| core::Asymmetry { d_level, d_viscous }),
+            position_force: series("position_force", position_force)?,
+            position_friction: series("position_friction", position_friction)?,
+            drift,
+            blocks: blocks.map(|(k, w)| core::MaxwellSlip::new(k, w, 0.0)).transpose().py()?,
+            compliance: compliance.map(|(m, f, z)| core::Compliance::new(m, f, z)).transpose().py()?,
+        };
+        let effects = (!effects.is_empty()).then_some(effects);
+        Ok(Self { axis: core::Axis::new(plant.plant, friction.map(|f| f.model.clone()), effects).py()? })
     }
-    detached(py, || core::simulate_into(&p, fric.as_mut(), &mut ctrl, &input, buffers))?;
-    let d = PyDict::new(py);
-    d.set_item("position", out.position.into_pyarray(py))?;
-    d.set_item("velocity", out.velocity.into_pyarray(py))?;
-    d.set_item("measured", if record_measured { Some(out.measured.into_pyarray(py)) } else { None })?;
-    d.set_item("command", out.command.into_pyarray(py))?;
-    d.set_item("friction", out.friction.into_pyarray(py))?;
-    Ok(d)
-}
-
-/// Open-loop plant response to `u` held over steps of `dt`; returns `(position, velocity)`.
-#[pyfunction]
-fn simulate_open_loop<'py>(py: Python<'py>, plant_params: (f64, f64, f64, f64, f64), dt: f64, u: PyReadonlyArray1<'py, f64>) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
-    let p = plant(plant_params)?;
-    let u = slice("u", &u)?;
-    let (y, v) = detached(py, || core::simulate_open_loop(&p, dt, u))?;
-    Ok((y.into_pyarray(py), v.into_pyarray(py)))
-}
-
-/// Exact discretisation: `(phi (2x2 row-major list), gamma_old, gamma_new, gamma_force, delay_steps)`.
-#[pyfunction]
-fn discretize_plant(plant_params: (f64, f64, f64, f64, f64), dt: f64) -> PyResult<(Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, usize)> {
-    let d = plant(plant_params)?.discretize(dt).py()?;
-    let phi = vec![d.phi[(0, 0)], d.phi[(0, 1)], d.phi[(1, 0)], d.phi[(1, 1)]];
-    Ok((phi, d.gamma_old.as_slice().to_vec(), d.gamma_new.as_slice().to_vec(), d.gamma_force.as_slice().to_vec(), d.delay_steps))
 }
 
 #[pymodule]
@@ -254,12 +220,45 @@ fn _gmsfric(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     m.add_class::<FrictionSpec>()?;
     m.add_class::<ControllerSpec>()?;
-    m.add_function(wrap_pyfunction!(static_map_force, m)?)?;
-    m.add_function(wrap_pyfunction!(simulate_closed_loop, m)?)?;
-    m.add_function(wrap_pyfunction!(simulate_open_loop, m)?)?;
-    m.add_function(wrap_pyfunction!(discretize_plant, m)?)?;
-    m.add_function(wrap_pyfunction!(batch::simulate_closed_loop_batch, m)?)?;
-    m.add_function(wrap_pyfunction!(batch::simulate_friction_batch, m)?)?;
+    m.add_class::<PlantSpec>()?;
+    m.add_class::<AxisSpec>()?;
+    m.add_function(wrap_pyfunction!(run::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(run::simulate_friction, m)?)?;
+    m.add_function(wrap_pyfunction!(reference_data, m)?)?;
+    m.add_function(wrap_pyfunction!(reference_values, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
+}
+
+/// The reference data file (JSON text) that the core's reference problems are built from.
+#[pyfunction]
+fn reference_data() -> &'static str {
+    core::reference::DATA
+}
+
+/// The core's reference problems as it builds them, for the test that the Python presets read
+/// the same numbers: `{name: [values...]}`.
+#[pyfunction]
+fn reference_values() -> Vec<(&'static str, Vec<f64>)> {
+    use core::reference as r;
+    let st = r::paper_stribeck();
+    let map = r::paper_static();
+    let g = r::paper_gms();
+    let p = r::paper_plant();
+    let pid = r::paper_pid();
+    let ep = r::emps_plant();
+    let ef = r::emps_friction();
+    let ec = r::emps_controller();
+    vec![
+        ("paper_stribeck", vec![st.fc, st.fs, st.vs, st.delta]),
+        ("paper_sigma", vec![map.sigma]),
+        ("paper_gms_k", g.k.clone()),
+        ("paper_gms_alpha", g.alpha.clone()),
+        ("paper_gms_c", vec![g.c]),
+        ("paper_plant", vec![p.a, p.b, p.c, p.delay, p.force_gain]),
+        ("paper_pid", vec![pid.kp, pid.ki, pid.kd, pid.tf, pid.u_min, pid.u_max]),
+        ("emps_plant", vec![ep.a, ep.b, ep.c, ep.delay, ep.force_gain]),
+        ("emps_friction", vec![ef.stribeck.fc, ef.stribeck.fs, ef.sigma, ef.offset]),
+        ("emps_controller", vec![ec.kp, ec.kv, ec.u_min, ec.u_max]),
+    ]
 }

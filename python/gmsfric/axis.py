@@ -1,0 +1,370 @@
+"""One model of an axis through the whole toolchain: plant, friction, effects, units,
+covariance and provenance.
+
+An :class:`AxisModel` is what identification produces, what the loop refines, what ``glitch``,
+the batch functions and the output-error fit simulate, and what ``save_model``/``load_model``
+carry between commands. Everything inside is SI (m, m/s, N, kg; rad, rad/s, N m, kg m^2 for a
+rotary axis); :class:`AxisUnits` only says how to show it.
+
+The effects (:class:`Effects`) are simulated *in feedback* by the core, on any trajectory:
+
+================================  ==========================================================
+``asymmetry``                     Coulomb level ``+-d_level``, viscous ``+-d_viscous`` per direction
+``position_force``                ``g(q)`` (N), cogging, springs, gravity, cables
+``position_friction``             ``g(q)`` added to the Coulomb level
+``drift``                         levels changing over a run, ``h(t)`` linear or exponential
+``blocks``                        pre-sliding Maxwell-slip blocks ``(k_i, w_i)`` beside the friction
+``compliance``                    a load ``mass`` on a spring-damper (``fn_hz``, ``zeta``)
+``input_delay``                   the plant's ``delay``
+================================  ==========================================================
+
+Level-changing effects (asymmetry, position-dependent friction, drift) need a static-map friction.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import _gmsfric
+from ._validate import as_array, count, number
+from .errors import InvalidInputError
+from .models import GMS, FrictionModel, LuGre, MaxwellSlip, NativeBacked, StaticFriction, native_friction
+from .system import Controller, Plant
+
+if TYPE_CHECKING:  # pragma: no cover
+    from typing_extensions import Unpack
+
+    from .system import ClosedLoopResult, RunOptions
+
+SeriesKind = Literal["legendre", "fourier", "table"]
+
+
+@dataclass(frozen=True)
+class PositionSeries:
+    """A function of position ``g(q)``: a series or a table.
+
+    Use the constructors: :meth:`legendre` (smooth: springs, gravity, wear along the travel),
+    :meth:`fourier` (periodic: cogging, screw pitch), :meth:`table` (measured, interpolated).
+    """
+
+    kind: SeriesKind
+    coef: tuple[float, ...] = ()
+    lo: float = 0.0
+    hi: float = 0.0
+    periods: tuple[float, ...] = ()
+    harmonics: int = 0
+    q0: float = 0.0
+    dq: float = 0.0
+    values: tuple[float, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("legendre", "fourier", "table"):
+            raise InvalidInputError(f"`kind` must be 'legendre', 'fourier' or 'table', got {self.kind!r}")
+        for name in ("coef", "periods", "values"):
+            object.__setattr__(self, name, tuple(float(v) for v in np.atleast_1d(np.asarray(getattr(self, name), dtype=float))) if len(getattr(self, name)) else ())
+        for name in ("lo", "hi", "q0", "dq"):
+            object.__setattr__(self, name, number(name, getattr(self, name)))
+        object.__setattr__(self, "harmonics", count("harmonics", self.harmonics, minimum=0))
+        # The core validates the combination (travel, lengths, finiteness).
+        _gmsfric.AxisSpec(_gmsfric.PlantSpec(1.0, 0.0, 0.0, 0.0, 1.0), None, position_force=self.core_args())
+
+    @classmethod
+    def legendre(cls, lo: float, hi: float, coef: ArrayLike) -> "PositionSeries":
+        """``sum_d coef[d] P_d(x)``, ``x = 2 (q - lo)/(hi - lo) - 1`` clipped to ``[-1, 1]``."""
+        return cls("legendre", coef=tuple(as_array("coef", coef)), lo=lo, hi=hi)
+
+    @classmethod
+    def fourier(cls, periods: ArrayLike, harmonics: int, coef: ArrayLike) -> "PositionSeries":
+        """``sum_p sum_h a sin(2 pi h q / p) + b cos(...)``; ``coef`` as (a, b) pairs, period by
+        period, harmonic by harmonic."""
+        return cls("fourier", coef=tuple(as_array("coef", coef)), periods=tuple(as_array("periods", periods)), harmonics=harmonics)
+
+    @classmethod
+    def table(cls, q: ArrayLike, values: ArrayLike) -> "PositionSeries":
+        """Linear interpolation of ``values`` at uniformly spaced positions ``q`` (constant beyond)."""
+        q_arr, v_arr = as_array("q", q, min_len=2), as_array("values", values, min_len=2)
+        if q_arr.size != v_arr.size:
+            raise InvalidInputError(f"`values` has length {v_arr.size} but `q` has length {q_arr.size}")
+        dq = np.diff(q_arr)
+        if not (np.all(dq > 0) and np.allclose(dq, dq[0], rtol=1e-6)):
+            raise InvalidInputError("`q` must be uniformly spaced and increasing")
+        return cls("table", q0=float(q_arr[0]), dq=float(dq.mean()), values=tuple(v_arr))
+
+    def core_args(self) -> dict[str, Any]:
+        """The series as the core's constructor takes it."""
+        if self.kind == "legendre":
+            return {"kind": "legendre", "lo": self.lo, "hi": self.hi, "coef": list(self.coef)}
+        if self.kind == "fourier":
+            return {"kind": "fourier", "periods": list(self.periods), "harmonics": self.harmonics, "coef": list(self.coef)}
+        return {"kind": "table", "q0": self.q0, "dq": self.dq, "values": list(self.values)}
+
+    def __call__(self, q: ArrayLike) -> NDArray[np.float64]:
+        """``g(q)`` on positions ``q`` (numpy; the core evaluates the same series in simulations)."""
+        q = as_array("q", q)
+        if self.kind == "legendre":
+            x = np.clip(2.0 * (q - self.lo) / (self.hi - self.lo) - 1.0, -1.0, 1.0)
+            return np.polynomial.legendre.legval(x, np.asarray(self.coef))
+        if self.kind == "fourier":
+            out = np.zeros_like(q)
+            c = iter(self.coef)
+            for p in self.periods:
+                for h in range(1, self.harmonics + 1):
+                    w = 2 * np.pi * h / p
+                    out += next(c) * np.sin(w * q) + next(c) * np.cos(w * q)
+            return out
+        grid = self.q0 + self.dq * np.arange(len(self.values))
+        return np.interp(q, grid, np.asarray(self.values))
+
+
+@dataclass(frozen=True)
+class Drift:
+    """Friction levels that change over a run: Coulomb ``+ d_level h(t)``, viscous
+    ``+ d_viscous h(t)``, with ``h = t / scale - 1/2`` (``"linear"``, ``scale`` = the duration it
+    was fitted on) or ``h = exp(-t / scale)`` (``"exponential"``, warm-up); ``t`` from the run's start."""
+
+    shape: Literal["linear", "exponential"]
+    scale: float
+    d_level: float = 0.0
+    d_viscous: float = 0.0
+
+    def core_args(self) -> tuple[str, float, float, float]:
+        return (self.shape, number("scale", self.scale), number("d_level", self.d_level), number("d_viscous", self.d_viscous))
+
+
+@dataclass(frozen=True)
+class Compliance:
+    """A load of ``mass`` (kg) on a spring-damper (``fn_hz``, damping ratio ``zeta``) behind the
+    simulated mass; the plant is then the motor side only."""
+
+    mass: float
+    fn_hz: float
+    zeta: float = 0.1
+
+
+@dataclass(frozen=True)
+class Effects:
+    """What an axis has beyond its plant and friction model (all optional); see the module doc."""
+
+    asymmetry: tuple[float, float] | None = None
+    position_force: PositionSeries | None = None
+    position_friction: PositionSeries | None = None
+    drift: Drift | None = None
+    blocks: MaxwellSlip | None = None
+    compliance: Compliance | None = None
+
+    def __post_init__(self) -> None:
+        if self.asymmetry is not None:
+            d_level, d_viscous = self.asymmetry
+            object.__setattr__(self, "asymmetry", (number("asymmetry", d_level), number("asymmetry", d_viscous)))
+        for name, kind in (("position_force", PositionSeries), ("position_friction", PositionSeries), ("drift", Drift), ("blocks", MaxwellSlip), ("compliance", Compliance)):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, kind):
+                raise InvalidInputError(f"`{name}` must be a {kind.__name__}, got {type(value).__name__}")
+
+    @property
+    def names(self) -> list[str]:
+        """The effects present."""
+        return [f.name for f in dataclasses.fields(self) if getattr(self, f.name) is not None]
+
+    def core_args(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.asymmetry is not None:
+            out["asymmetry"] = self.asymmetry
+        if self.position_force is not None:
+            out["position_force"] = self.position_force.core_args()
+        if self.position_friction is not None:
+            out["position_friction"] = self.position_friction.core_args()
+        if self.drift is not None:
+            out["drift"] = self.drift.core_args()
+        if self.blocks is not None:
+            out["blocks"] = (list(self.blocks.k), list(self.blocks.w))
+        if self.compliance is not None:
+            c = self.compliance
+            out["compliance"] = (number("mass", c.mass), number("fn_hz", c.fn_hz), number("zeta", c.zeta))
+        return out
+
+
+@dataclass(frozen=True)
+class AxisUnits:
+    """How the axis is shown: ``kind`` ``"linear"`` (m, N, kg) or ``"rotary"`` (rad, N m, kg m^2),
+    and the drive command's unit. Values inside are always SI."""
+
+    kind: Literal["linear", "rotary"] = "linear"
+    command: str = "V"
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("linear", "rotary"):
+            raise InvalidInputError(f"`kind` must be 'linear' or 'rotary', got {self.kind!r}")
+
+    @property
+    def position(self) -> str:
+        return "m" if self.kind == "linear" else "rad"
+
+    @property
+    def force(self) -> str:
+        return "N" if self.kind == "linear" else "N m"
+
+
+@dataclass(frozen=True)
+class Covariance:
+    """Parameter covariance in SI: ``names`` are parameter paths of :meth:`AxisModel.parameters`."""
+
+    names: tuple[str, ...]
+    matrix: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        m = np.asarray(self.matrix, dtype=float)
+        n = len(self.names)
+        if m.shape != (n, n):
+            raise InvalidInputError(f"`matrix` must be {n} x {n} for {n} names, got shape {m.shape}")
+        if not np.all(np.isfinite(m)) or not np.allclose(m, m.T, rtol=1e-8, atol=0):
+            raise InvalidInputError("`matrix` must be finite and symmetric")
+        object.__setattr__(self, "names", tuple(self.names))
+        object.__setattr__(self, "matrix", m)
+
+    def stderr(self) -> dict[str, float]:
+        return {n: float(np.sqrt(max(self.matrix[i, i], 0.0))) for i, n in enumerate(self.names)}
+
+
+@dataclass(frozen=True)
+class AxisModel(NativeBacked):
+    """A servo axis: plant, friction model, effects, units, covariance and provenance.
+
+    Parameters
+    ----------
+    plant : Plant
+        ``a / (s^2 + b s + c)`` with delay and force gain (``Plant.from_mass`` for a rigid body).
+    friction : StaticFriction, GMS, MaxwellSlip, LuGre or None
+    effects : Effects
+    units : AxisUnits
+    covariance : Covariance, optional
+        Of the parameters named by :meth:`parameters` (SI).
+    provenance : dict
+        Where the model came from: package version, input files and columns, command.
+    """
+
+    _native: ClassVar[_gmsfric.AxisSpec]
+
+    plant: Plant
+    friction: FrictionModel | None = None
+    effects: Effects = field(default_factory=Effects)
+    units: AxisUnits = field(default_factory=AxisUnits)
+    covariance: Covariance | None = None
+    provenance: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.plant, Plant):
+            raise InvalidInputError(f"`plant` must be a Plant, got {type(self.plant).__name__}")
+        if not isinstance(self.effects, Effects):
+            raise InvalidInputError(f"`effects` must be an Effects, got {type(self.effects).__name__}")
+        spec = _gmsfric.AxisSpec(self.plant._native, native_friction(self.friction), **self.effects.core_args())
+        object.__setattr__(self, "_native", spec)
+        object.__setattr__(self, "provenance", dict(self.provenance))
+
+    def simulate(
+        self,
+        dt: float,
+        *,
+        reference: ArrayLike | None = None,
+        controller: Controller | None = None,
+        command: ArrayLike | None = None,
+        **options: "Unpack[RunOptions]",
+    ) -> "ClosedLoopResult":
+        """Simulate this axis, effects in feedback: closed loop (``reference`` and ``controller``)
+        or open loop (``command``, input units). Other keywords as :class:`~gmsfric.system.RunOptions`."""
+        from .system import simulate_closed_loop
+
+        if command is not None:
+            if "feedforward" in options:
+                raise InvalidInputError("give `command` or `feedforward`, not both")
+            options["feedforward"] = command
+        return simulate_closed_loop(self, None, controller, reference, dt, **options)
+
+    # -- parameters ------------------------------------------------------------------------
+
+    def parameters(self) -> dict[str, float]:
+        """Every numeric parameter by path (``plant.a``, ``friction.stribeck.fc``,
+        ``effects.position_force.coef.2`` ...), in SI."""
+        out: dict[str, float] = {}
+        _flatten(self.plant, "plant", out)
+        if self.friction is not None:
+            _flatten(self.friction, "friction", out)
+        _flatten(self.effects, "effects", out)
+        return out
+
+    def with_parameters(self, values: Mapping[str, float]) -> "AxisModel":
+        """A copy with the parameters at ``values`` (paths as :meth:`parameters`) changed; the
+        new model is validated by the core like any other."""
+        model: Any = self
+        for path, value in values.items():
+            model = _replace(model, path.split("."), float(value), path)
+        return model  # type: ignore[no-any-return]
+
+    def sample(self, n: int, *, seed: int | None = None) -> list["AxisModel"]:
+        """``n`` models with parameters drawn from the covariance (Monte Carlo over the
+        identification's uncertainty). Draws that the core refuses (a negative stiffness, say)
+        are drawn again."""
+        if self.covariance is None:
+            raise InvalidInputError("this model has no covariance to sample from")
+        n = count("n", n, minimum=1)
+        rng = np.random.default_rng(seed)
+        names = self.covariance.names
+        base = self.parameters()
+        missing = [k for k in names if k not in base]
+        if missing:
+            raise InvalidInputError(f"the covariance names parameters the model does not have: {missing}")
+        mean = np.array([base[k] for k in names])
+        out: list[AxisModel] = []
+        attempts = 0
+        while len(out) < n:
+            attempts += 1
+            if attempts > 20 * n + 100:
+                raise InvalidInputError("most draws from the covariance give invalid models (negative levels or stiffnesses)")
+            draw = rng.multivariate_normal(mean, self.covariance.matrix, method="eigh")
+            try:
+                out.append(self.with_parameters(dict(zip(names, draw))))
+            except InvalidInputError:
+                continue
+        return out
+
+
+def _flatten(obj: Any, prefix: str, out: dict[str, float]) -> None:
+    if isinstance(obj, bool) or obj is None or isinstance(obj, str):
+        return
+    if isinstance(obj, (int, float)):
+        out[prefix] = float(obj)
+        return
+    if isinstance(obj, tuple):
+        for i, v in enumerate(obj):
+            _flatten(v, f"{prefix}.{i}", out)
+        return
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        for f in dataclasses.fields(obj):
+            if f.name in ("units", "covariance", "provenance") or f.name == "kind" or f.name == "harmonics":
+                continue
+            _flatten(getattr(obj, f.name), f"{prefix}.{f.name}", out)
+
+
+def _replace(obj: Any, path: Sequence[str], value: float, full: str) -> Any:
+    if not path:
+        return value
+    head, *rest = path
+    if isinstance(obj, tuple):
+        try:
+            i = int(head)
+            items = list(obj)
+            items[i] = _replace(items[i], rest, value, full)
+        except (ValueError, IndexError):
+            raise InvalidInputError(f"no parameter `{full}`") from None
+        return tuple(items)
+    if not (dataclasses.is_dataclass(obj) and not isinstance(obj, type)) or head not in {f.name for f in dataclasses.fields(obj)}:
+        raise InvalidInputError(f"no parameter `{full}`")
+    return dataclasses.replace(obj, **{head: _replace(getattr(obj, head), rest, value, full)})
+
+
+__all__ = ["AxisModel", "AxisUnits", "Effects", "PositionSeries", "Drift", "Compliance", "Covariance"]
