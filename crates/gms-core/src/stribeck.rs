@@ -127,9 +127,10 @@ impl StaticFriction {
         ((self.stribeck.eval(self.v_linear) + level).max(0.0) + sigma * self.v_linear) / self.v_linear
     }
 
-    /// The level a sticking contact holds against a push in direction `dir` (N).
+    /// The level a sticking contact holds against a push in direction `dir` (N): the curve at
+    /// rest, `s(0) = fs` (below the Coulomb level when friction rises with speed).
     pub fn breakaway_shifted(&self, dir: f64, shift: &LevelShift) -> f64 {
-        (self.stribeck.max_level() + self.direction_levels(dir, shift).0).max(0.0)
+        (self.stribeck.fs + self.direction_levels(dir, shift).0).max(0.0)
     }
 
     /// `(level shift, viscous coefficient)` for motion in direction `dir` (+1 / -1); the
