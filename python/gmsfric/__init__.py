@@ -7,7 +7,7 @@ delayed plant; this package exposes the models, identification, analysis and plo
 from __future__ import annotations
 
 from ._gmsfric import __version__
-from .axis import AxisModel, AxisUnits, Compliance, Covariance, Drift, Effects, PositionSeries
+from .axis import AxisModel, AxisUnits, Compliance, Covariance, Drift, Effects, Heating, PositionSeries
 from .errors import DataError, GmsfricError, IdentificationError, InvalidInputError, ResourceError, SimulationError
 from .models import GMS, LuGre, MaxwellSlip, StaticFriction, Stribeck, simulate_friction
 from .system import PID, PIDDOB, Cascade, ClosedLoopResult, Plant, RunOptions, simulate_closed_loop
@@ -43,6 +43,7 @@ __all__ = [
     "Effects",
     "PositionSeries",
     "Drift",
+    "Heating",
     "Compliance",
     "Covariance",
     "GmsfricError",

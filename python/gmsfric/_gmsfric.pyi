@@ -71,6 +71,7 @@ class AxisSpec:
         position_force: Optional[dict[str, Any]] = None,
         position_friction: Optional[dict[str, Any]] = None,
         drift: Optional[tuple[str, float, float, float]] = None,
+        heating: Optional[tuple[float, float, float]] = None,
         blocks: Optional[tuple[list[float], list[float]]] = None,
         compliance: Optional[tuple[float, float, float]] = None,
     ) -> AxisSpec: ...

@@ -13,12 +13,14 @@ The effects (:class:`Effects`) are simulated *in feedback* by the core, on any t
 ``position_force``                ``g(q)`` (N), cogging, springs, gravity, cables
 ``position_friction``             ``g(q)`` added to the Coulomb level
 ``drift``                         levels changing over a run, ``h(t)`` linear or exponential
+``heating``                       levels changing with the recent motion (speed low-passed, ``tau``)
 ``blocks``                        pre-sliding Maxwell-slip blocks ``(k_i, w_i)`` beside the friction
 ``compliance``                    a load ``mass`` on a spring-damper (``fn_hz``, ``zeta``)
 ``input_delay``                   the plant's ``delay``
 ================================  ==========================================================
 
-Level-changing effects (asymmetry, position-dependent friction, drift) need a static-map friction.
+Level-changing effects (asymmetry, position-dependent friction, drift, heating) need a static-map
+friction.
 """
 
 from __future__ import annotations
@@ -137,6 +139,21 @@ class Drift:
 
 
 @dataclass(frozen=True)
+class Heating:
+    """Friction that changes with the recent motion (a lubricant warming up): the speed
+    low-passed with time constant ``tau`` (s), ``m' = (|v| - m) / tau``, shifts the Coulomb level
+    by ``d_level * m`` (N per m/s) and the viscous coefficient by ``d_viscous * m``. ``m`` starts
+    at the run's initial speed."""
+
+    tau: float
+    d_level: float = 0.0
+    d_viscous: float = 0.0
+
+    def core_args(self) -> tuple[float, float, float]:
+        return (number("tau", self.tau), number("d_level", self.d_level), number("d_viscous", self.d_viscous))
+
+
+@dataclass(frozen=True)
 class Compliance:
     """A load of ``mass`` (kg) on a spring-damper (``fn_hz``, damping ratio ``zeta``) behind the
     simulated mass; the plant is then the motor side only."""
@@ -154,6 +171,7 @@ class Effects:
     position_force: PositionSeries | None = None
     position_friction: PositionSeries | None = None
     drift: Drift | None = None
+    heating: Heating | None = None
     blocks: MaxwellSlip | None = None
     compliance: Compliance | None = None
 
@@ -161,7 +179,7 @@ class Effects:
         if self.asymmetry is not None:
             d_level, d_viscous = self.asymmetry
             object.__setattr__(self, "asymmetry", (number("asymmetry", d_level), number("asymmetry", d_viscous)))
-        for name, kind in (("position_force", PositionSeries), ("position_friction", PositionSeries), ("drift", Drift), ("blocks", MaxwellSlip), ("compliance", Compliance)):
+        for name, kind in (("position_force", PositionSeries), ("position_friction", PositionSeries), ("drift", Drift), ("heating", Heating), ("blocks", MaxwellSlip), ("compliance", Compliance)):
             value = getattr(self, name)
             if value is not None and not isinstance(value, kind):
                 raise InvalidInputError(f"`{name}` must be a {kind.__name__}, got {type(value).__name__}")
@@ -181,6 +199,8 @@ class Effects:
             out["position_friction"] = self.position_friction.core_args()
         if self.drift is not None:
             out["drift"] = self.drift.core_args()
+        if self.heating is not None:
+            out["heating"] = self.heating.core_args()
         if self.blocks is not None:
             out["blocks"] = (list(self.blocks.k), list(self.blocks.w))
         if self.compliance is not None:
@@ -367,4 +387,4 @@ def _replace(obj: Any, path: Sequence[str], value: float, full: str) -> Any:
     return dataclasses.replace(obj, **{head: _replace(getattr(obj, head), rest, value, full)})
 
 
-__all__ = ["AxisModel", "AxisUnits", "Effects", "PositionSeries", "Drift", "Compliance", "Covariance"]
+__all__ = ["AxisModel", "AxisUnits", "Effects", "PositionSeries", "Drift", "Heating", "Compliance", "Covariance"]

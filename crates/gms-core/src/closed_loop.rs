@@ -461,7 +461,7 @@ impl Axis {
             if e.shifts_levels() && !matches!(friction, Some(FrictionModel::Static(_))) {
                 return Err(CoreError::InvalidParameter {
                     name: "effects",
-                    reason: "asymmetric, position-dependent or drifting friction levels need a static-map friction model".into(),
+                    reason: "asymmetric, position-dependent, drifting or heating friction levels need a static-map friction model".into(),
                 });
             }
         }

@@ -169,6 +169,24 @@ impl Drift {
     }
 }
 
+/// Friction that changes with the recent motion (a lubricant warming up, a temperature): the
+/// speed low-passed with time constant `tau`, `m' = (|v| - m) / tau`, shifts the Coulomb level by
+/// `d_level * m` and the viscous coefficient by `d_viscous * m` (both per m/s of `m`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Heating {
+    pub tau: f64,
+    pub d_level: f64,
+    pub d_viscous: f64,
+}
+
+impl Heating {
+    fn check(&self) -> Result<()> {
+        check::positive("tau", self.tau)?;
+        check::finite("d_level", self.d_level)?;
+        check::finite("d_viscous", self.d_viscous).map(|_| ())
+    }
+}
+
 /// Friction that differs with the direction of motion: moving in `+` the Coulomb level is
 /// `+ d_level` and the viscous coefficient `+ d_viscous`; moving in `-`, minus the same.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -246,6 +264,7 @@ pub struct Effects {
     /// `g(q)` added to the Coulomb level (N): the friction level varies along the travel.
     pub position_friction: Option<PositionSeries>,
     pub drift: Option<Drift>,
+    pub heating: Option<Heating>,
     /// Pre-sliding blocks in parallel with the friction model.
     pub blocks: Option<MaxwellSlip>,
     pub compliance: Option<Compliance>,
@@ -264,12 +283,15 @@ impl Effects {
         if let Some(d) = &self.drift {
             d.check()?;
         }
+        if let Some(h) = &self.heating {
+            h.check()?;
+        }
         Ok(())
     }
 
     /// Whether any part shifts the friction levels (needs a friction model that supports it).
     pub fn shifts_levels(&self) -> bool {
-        self.asymmetry.is_some() || self.position_friction.is_some() || self.drift.is_some()
+        self.asymmetry.is_some() || self.position_friction.is_some() || self.drift.is_some() || self.heating.is_some()
     }
 
     /// Nothing to add.
@@ -277,9 +299,9 @@ impl Effects {
         *self == Effects::default()
     }
 
-    /// The level shift at position `q` and time `t`.
+    /// The level shift at position `q`, time `t` and low-passed speed `m`.
     #[inline]
-    fn level_shift(&self, q: f64, t: f64) -> LevelShift {
+    fn level_shift(&self, q: f64, t: f64, m: f64) -> LevelShift {
         let mut s = LevelShift::NONE;
         if let Some(a) = &self.asymmetry {
             s.level_pos += a.d_level;
@@ -299,6 +321,12 @@ impl Effects {
             s.viscous_pos += d.d_viscous * h;
             s.viscous_neg += d.d_viscous * h;
         }
+        if let Some(h) = &self.heating {
+            s.level_pos += h.d_level * m;
+            s.level_neg += h.d_level * m;
+            s.viscous_pos += h.d_viscous * m;
+            s.viscous_neg += h.d_viscous * m;
+        }
         s
     }
 }
@@ -312,6 +340,9 @@ pub struct EffectsElement<F> {
     q: f64,
     t: f64,
     q_start: f64,
+    /// Low-passed speed of the heating effect (m/s) and its value at the start.
+    m: f64,
+    m_start: f64,
     /// Extra force (blocks + compliance + position force) of the last step.
     extra: f64,
     /// Set when a step could not be prepared (a compliance too fast for the step); reported
@@ -326,10 +357,10 @@ impl<F: FrictionElement> EffectsElement<F> {
         if effects.shifts_levels() && !inner.supports_level_shift() {
             return Err(CoreError::InvalidParameter {
                 name: "effects",
-                reason: "asymmetric, position-dependent or drifting friction levels need a static-map friction model".into(),
+                reason: "asymmetric, position-dependent, drifting or heating friction levels need a static-map friction model".into(),
             });
         }
-        Ok(Self { inner, effects, q: 0.0, t: 0.0, q_start: 0.0, extra: 0.0, failed: None })
+        Ok(Self { inner, effects, q: 0.0, t: 0.0, q_start: 0.0, m: 0.0, m_start: 0.0, extra: 0.0, failed: None })
     }
 
     /// The first error met while stepping, if any.
@@ -342,7 +373,7 @@ impl<F: FrictionElement> EffectsElement<F> {
     #[inline]
     fn start_step(&mut self, dt: f64) -> ((f64, f64), Option<Matrix2<f64>>) {
         if self.effects.shifts_levels() {
-            self.inner.set_level_shift(self.effects.level_shift(self.q, self.t));
+            self.inner.set_level_shift(self.effects.level_shift(self.q, self.t, self.m));
         }
         let f_pos = self.effects.position_force.as_ref().map_or((0.0, 0.0), |g| g.eval_with_slope(self.q));
         let phi = match self.effects.compliance.as_mut().map(|c| c.phi(dt)) {
@@ -366,6 +397,11 @@ impl<F: FrictionElement> EffectsElement<F> {
         }
         if let (Some(c), Some(phi)) = (self.effects.compliance.as_mut(), phi) {
             extra += c.advance(&phi, dx, dt);
+        }
+        if let Some(h) = &self.effects.heating {
+            // Exact for the speed held over the step.
+            let speed = dx.abs() / dt;
+            self.m = speed + (self.m - speed) * (-dt / h.tau).exp();
         }
         self.q += dx;
         self.t += dt;
@@ -411,6 +447,7 @@ impl<F: FrictionElement> FrictionElement for EffectsElement<F> {
         }
         self.q = self.q_start;
         self.t = 0.0;
+        self.m = self.m_start;
         self.extra = 0.0;
         self.failed = None;
     }
@@ -420,6 +457,9 @@ impl<F: FrictionElement> FrictionElement for EffectsElement<F> {
         self.q_start = position;
         self.q = position;
         self.t = 0.0;
+        // A run that starts moving has been moving: the low-passed speed starts at that speed.
+        self.m_start = velocity.abs();
+        self.m = self.m_start;
         if let Some(c) = self.effects.compliance.as_mut() {
             c.r = 0.0;
             c.v2 = velocity;

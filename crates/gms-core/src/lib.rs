@@ -27,7 +27,7 @@ pub mod stribeck;
 
 pub use closed_loop::{simulate, simulate_open_loop, simulate_generic, simulate_generic_into, simulate_into, Axis, ClosedLoopBuffers, ClosedLoopInput, ClosedLoopOutput, NoFriction, Record};
 pub use control::{Cascade, Controller, ControllerModel, OpenLoop, Pid, PidDob};
-pub use effects::{Asymmetry, Compliance, Drift, DriftShape, Effects, EffectsElement, PositionSeries};
+pub use effects::{Asymmetry, Compliance, Drift, DriftShape, Effects, EffectsElement, Heating, PositionSeries};
 pub use error::{CoreError, Result};
 pub use friction::{simulate_position, simulate_velocity, Coupling, FrictionElement, FrictionModel, Gms, LuGre, MaxwellSlip, SlipLaw, StaticElement};
 pub use plant::{DelayLine, DiscretePlant, Plant};

@@ -215,3 +215,24 @@ fn the_cascade_starts_with_the_initial_velocity() {
     let out = simulate(&rigid(1.0), None, None, Some(&ctrl), &input).unwrap();
     assert!((out.command[0] + 10.0 * v0).abs() < 1e-12, "first command {} vs {}", out.command[0], -10.0 * v0);
 }
+
+#[test]
+fn heating_lowers_friction_with_the_low_passed_speed() {
+    // Constant push on a viscous-dominated contact: the speed settles fast, the low-passed speed
+    // m follows with tau, and the Coulomb level falls by d_level * m.
+    let (fc, sigma, tau, dl, dt) = (5.0, 100.0, 2.0, -10.0, 1e-3);
+    let effects = Effects { heating: Some(Heating { tau, d_level: dl, d_viscous: 0.0 }), ..Default::default() };
+    let u = vec![40.0; 8000];
+    let out = simulate(&rigid(1.0), Some(&coulomb(fc, sigma)), Some(&effects), None, &ClosedLoopInput::open(&u, dt)).unwrap();
+    let mut m = 0.0;
+    for k in 0..u.len() {
+        if k > 100 && k % 1000 == 0 {
+            let want = fc + dl * m + sigma * out.velocity[k];
+            assert!((out.friction[k] - want).abs() < 0.02, "t = {}: {} vs {want}", k as f64 * dt, out.friction[k]);
+        }
+        let v = if k + 1 < u.len() { (out.position[k + 1] - out.position[k]) / dt } else { 0.0 };
+        m = v.abs() + (m - v.abs()) * (-dt / tau).exp();
+    }
+    // At a constant push the total friction balances it: a lower level shows as a higher speed.
+    assert!(out.velocity[7999] > out.velocity[500] + 0.02, "the axis speeds up as the contact warms");
+}

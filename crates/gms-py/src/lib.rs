@@ -177,9 +177,10 @@ pub struct AxisSpec {
 impl AxisSpec {
     /// `asymmetry = (d_level, d_viscous)`; `drift = (shape, scale_s, d_level, d_viscous)` with
     /// shape "linear" (scale = the run's duration) or "exponential" (scale = tau);
-    /// `blocks = (k, w)`; `compliance = (mass, fn_hz, zeta)`; series as [`SeriesArgs`].
+    /// `heating = (tau, d_level, d_viscous)`; `blocks = (k, w)`; `compliance = (mass, fn_hz,
+    /// zeta)`; series as [`SeriesArgs`].
     #[new]
-    #[pyo3(signature = (plant, friction=None, *, asymmetry=None, position_force=None, position_friction=None, drift=None, blocks=None, compliance=None))]
+    #[pyo3(signature = (plant, friction=None, *, asymmetry=None, position_force=None, position_friction=None, drift=None, heating=None, blocks=None, compliance=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         plant: &PlantSpec,
@@ -188,6 +189,7 @@ impl AxisSpec {
         position_force: Option<SeriesArgs>,
         position_friction: Option<SeriesArgs>,
         drift: Option<(String, f64, f64, f64)>,
+        heating: Option<(f64, f64, f64)>,
         blocks: Option<(Vec<f64>, Vec<f64>)>,
         compliance: Option<(f64, f64, f64)>,
     ) -> PyResult<Self> {
@@ -207,6 +209,7 @@ impl AxisSpec {
             position_force: series("position_force", position_force)?,
             position_friction: series("position_friction", position_friction)?,
             drift,
+            heating: heating.map(|(tau, d_level, d_viscous)| core::Heating { tau, d_level, d_viscous }),
             blocks: blocks.map(|(k, w)| core::MaxwellSlip::new(k, w, 0.0)).transpose().py()?,
             compliance: compliance.map(|(m, f, z)| core::Compliance::new(m, f, z)).transpose().py()?,
         };
