@@ -43,6 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     q.add_argument("--no-refine", action="store_true", help="stop at the virgin-curve fit")
     q.add_argument("--position-unit", default="m")
     q.add_argument("--force-unit", default="N")
+    q.add_argument("--time-unit", default="s")
     q.set_defaults(func=_presliding)
 
     r = sub.add_parser("plant", help="plant A/(s^2+Bs+C) e^{-s tau} from a band-limited random excitation")
@@ -102,7 +103,7 @@ def _presliding(args: argparse.Namespace) -> int:
 
     cols = load_columns(args.file, {"time": args.time, "position": args.position, "force": args.force}, min_samples=50)
     res = fit_presliding(cols["time"], cols["position"], cols["force"], n_blocks=args.blocks, max_blocks=args.max_blocks, refine=not args.no_refine,
-                         position_unit=args.position_unit, force_unit=args.force_unit, progress=not args.quiet)
+                         position_unit=args.position_unit, force_unit=args.force_unit, time_unit=args.time_unit, progress=not args.quiet)
     return _finish(res, args)
 
 

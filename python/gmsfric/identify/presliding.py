@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
+from .. import units as _units
 from .._progress import Progress
 from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
@@ -269,6 +270,28 @@ def _make_gms(k: NDArray[np.float64], w: NDArray[np.float64], c: float, stribeck
     return GMS.from_break_forces(k, w, c, stribeck=stribeck, sigma=sigma, slip_law=slip_law, scale="sum")  # type: ignore[arg-type]
 
 
+def presliding_units(position_unit: str, force_unit: str, time_unit: str = "s") -> tuple[bool, dict[str, float]]:
+    """Check the data units of a pre-sliding test; returns whether the axis is rotary and the
+    factors to SI of position, force and time."""
+    _units.check(time_unit, "time", name="time_unit")
+    rotary = _units.is_rotary(position_unit, "position", name="position_unit")
+    _units.check(force_unit, "force", rotary=rotary, name="force_unit")
+    kx = _units.factor(position_unit, "position", name="position_unit")
+    kf = _units.factor(force_unit, "force", name="force_unit")
+    kt = _units.factor(time_unit, "time", name="time_unit")
+    return rotary, {"position": kx, "force": kf, "time": kt}
+
+
+def _gms_si(k: NDArray[np.float64], w: NDArray[np.float64], c: float, stribeck: Stribeck | None, sigma: float, slip_law: str,
+            f: dict[str, float]) -> GMS:
+    """The identified GMS (built in the data's units) converted to SI: every parameter scaled by
+    its dimension, so the SI model simulates the same physics."""
+    kx, kf, kt = f["position"], f["force"], f["time"]
+    st = None if stribeck is None else Stribeck(stribeck.fc * kf, stribeck.fs * kf, stribeck.vs * kx / kt, stribeck.delta)
+    c_si = c * kf / kt if slip_law == "time" else c / kx
+    return _make_gms(k * (kf / kx), w * kf, c_si, st, sigma * kf * kt / kx, slip_law)
+
+
 def fit_presliding(
     t: ArrayLike,
     position: ArrayLike,
@@ -286,6 +309,7 @@ def fit_presliding(
     resolution: float | None = None,
     position_unit: str = "m",
     force_unit: str = "N",
+    time_unit: str = "s",
     progress: bool = True,
 ) -> IdentificationResult:
     """Identify the GMS blocks ``k_i`` (force/position) and ``w_i`` (force) from a virgin-curve
@@ -300,8 +324,9 @@ def fit_presliding(
     max_blocks : int
         Largest number of blocks tried by BIC.
     stribeck : Stribeck, optional
-        Shape of the sliding level for the hysteresis refinement (e.g. from the static-map fit);
-        it is rescaled so that ``s(0) = sum(w)`` (eq. 6).  Default: a constant level.
+        Shape of the sliding level for the hysteresis refinement (e.g. from the static-map fit),
+        in the data's units; it is rescaled so that ``s(0) = sum(w)`` (eq. 6).  Default: a
+        constant level.
     c : float, optional
         GMS attraction parameter for the refinement; default ``1 / vs`` of ``stribeck`` (the
         paper's statement) or a fast ``1e3 * sum(w) / (time unit)``.
@@ -320,15 +345,23 @@ def fit_presliding(
         Log-spaced bins of the virgin curve.
     resolution : float, optional
         Position resolution; estimated when not given.
-    position_unit, force_unit : str
-        Units of the data (the parameters are in the data's own units).
+    position_unit, force_unit, time_unit : str
+        Units of the data (any :mod:`gmsfric.units` reads; a rotary axis gives ``rad`` and
+        ``N m``).  The parameters are reported in them (``stribeck``, ``c`` and ``sigma`` are
+        taken in them too).
 
     Returns
     -------
     IdentificationResult
         ``model="presliding"``, parameters ``k1..kN`` and ``w1..wN``; ``model_object`` is the
-        refined :class:`~gmsfric.models.GMS` (SI only if the data are SI).
+        refined :class:`~gmsfric.models.GMS` converted to SI.
+
+    Raises
+    ------
+    UnitError
+        A unit unknown or not of its quantity (before any work).
     """
+    _, to_si = presliding_units(position_unit, force_unit, time_unit)
     t = as_array("time", t, min_len=10)
     x = as_array("position", position)
     F = as_array("force", force)
@@ -452,12 +485,14 @@ def fit_presliding(
         params[f"k{i + 1}"] = (float(kq[i]), float(se_k[i]))
     for i in range(nb):
         params[f"w{i + 1}"] = (float(wq[i]), float(se_w[i]))
-    units = {**{f"k{i + 1}": f"{force_unit}/{position_unit}" for i in range(nb)}, **{f"w{i + 1}": force_unit for i in range(nb)}}
+    units = {**{f"k{i + 1}": _units.ratio(force_unit, position_unit) for i in range(nb)}, **{f"w{i + 1}": force_unit for i in range(nb)}}
     info["knots"] = (wq / kq).tolist()
     info["break_force"] = float(wq.sum())
     info["c"] = c
     model = _make_gms(kq, wq, c, stribeck, sigma, slip_law)
-    return IdentificationResult("presliding", params, units, info, data={"t": t, "x": x, "F": F, "virgin": vc, "virgin_k": k, "virgin_d": d, "stribeck": stribeck, "sigma": sigma, "slip_law": slip_law}, plotter=_plot_presliding, model_object=model)
+    data = {"t": t, "x": x, "F": F, "virgin": vc, "virgin_k": k, "virgin_d": d, "stribeck": stribeck, "sigma": sigma, "slip_law": slip_law, "model": model}
+    return IdentificationResult("presliding", params, units, info, data=data, plotter=_plot_presliding,
+                                model_object=_gms_si(kq, wq, c, stribeck, sigma, slip_law, to_si))
 
 
 def _plot_presliding(res: IdentificationResult) -> list:
@@ -490,7 +525,7 @@ def _plot_presliding(res: IdentificationResult) -> list:
     for a in (ax, axl):
         a.grid(True, alpha=0.3)
     figs = [fig]
-    model = res.model_object
+    model = res.data.get("model")  # in the data's units, like t, x and F
     if model is not None:
         t, x, F = res.data["t"], res.data["x"], res.data["F"]
         sim = simulate_friction(model, t, x)

@@ -156,7 +156,7 @@ def revise_plant(
         "c": (revised.c, float(se[2])),
         "delay": (revised.delay, float(se[3]) if fit_delay else 0.0),
     }
-    units = {"a": "m/(V s^2)", "b": "1/s", "c": "1/s^2", "delay": "s"}
+    units = {"a": "m/(V s^2)", "b": "1/s", "c": "1/s^2", "delay": "s", "force_gain": "N/V"}
     orig_frf, _ = combined_frf(plant, friction, sim_drive, dt, controller=controller, nperseg=nper)
     rev_frf, _ = combined_frf(revised, friction, sim_drive, dt, controller=controller, nperseg=nper)
     dof = max(best.fun.size - q.size, 1)

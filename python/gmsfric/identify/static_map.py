@@ -16,9 +16,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
+from .. import units as _units
 from .._progress import Progress
 from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
+from ..models import StaticFriction, Stribeck
 from .results import IdentificationResult, covariance_from_jacobian
 
 NAMES = ("fc", "fs", "vs", "sigma", "delta")
@@ -29,6 +31,24 @@ def static_map_curve(v: ArrayLike, fc: float, fs: float, vs: float, sigma: float
     """Paper eq. 2 evaluated at ``v`` (any consistent units)."""
     v = np.asarray(v, dtype=float)
     return np.sign(v) * (fc + (fs - fc) * np.exp(-np.abs(v / vs) ** delta)) + sigma * v
+
+
+#: Quantity of each parameter (for :mod:`gmsfric.units`).
+QUANTITIES = {"fc": "force", "fs": "force", "vs": "velocity", "sigma": "damping", "delta": "dimensionless"}
+
+
+def static_map_units(velocity_unit: str, force_unit: str) -> dict[str, str]:
+    """Units of ``fc fs vs sigma delta`` for data in ``velocity_unit`` and ``force_unit``, after
+    checking both (a rotary axis: ``rad/s`` with a torque ``N m``)."""
+    rotary = _units.is_rotary(velocity_unit, "velocity", name="velocity_unit")
+    _units.check(force_unit, "force", rotary=rotary, name="force_unit")
+    return {"fc": force_unit, "fs": force_unit, "vs": velocity_unit, "sigma": _units.ratio(force_unit, velocity_unit), "delta": "1"}
+
+
+def static_friction_si(values: dict[str, float], units: dict[str, str]) -> StaticFriction:
+    """The :class:`~gmsfric.models.StaticFriction` of eq. 2 parameters given in ``units``, in SI."""
+    si = {k: _units.to_si(values[k], units[k], QUANTITIES[k], name=f"units[{k!r}]") for k in NAMES}
+    return StaticFriction(Stribeck(si["fc"], si["fs"], si["vs"], si["delta"]), sigma=si["sigma"])
 
 
 # Internal parameter vector: (fc, fs, log vs, sigma, log delta)
@@ -350,13 +370,21 @@ def fit_static_map(
     seed : int, optional
         Seed of the bootstrap.
     velocity_unit, force_unit : str
-        Units of the data, used for the reported units.
+        Units of the data (any :mod:`gmsfric.units` reads; a rotary axis gives ``rad/s`` and
+        ``N m``).  The parameters are reported in them; ``model_object`` is converted to SI.
 
     Returns
     -------
     IdentificationResult
-        ``model="static_map"``, parameters ``fc fs vs sigma delta``.
+        ``model="static_map"``, parameters ``fc fs vs sigma delta``; ``model_object`` the
+        :class:`~gmsfric.models.StaticFriction` in SI.
+
+    Raises
+    ------
+    UnitError
+        ``velocity_unit`` or ``force_unit`` unknown or not of their quantity (before any work).
     """
+    units = static_map_units(velocity_unit, force_unit)
     v = as_array("velocity", velocity)
     F = as_array("force", force)
     same_length("force", F, "velocity", v.size)
@@ -376,7 +404,6 @@ def fit_static_map(
         raise IdentificationError(f"need at least 4 distinct speeds to fit 5 parameters, got {np.unique(np.abs(v)).size}")
     speed, mag, w = np.abs(v), np.sign(v) * F, 1.0 / se
     q, params, r = _fit_side(speed, mag, w, delta_bounds)
-    units = {"fc": force_unit, "fs": force_unit, "vs": velocity_unit, "sigma": f"{force_unit}/({velocity_unit})", "delta": "1"}
     info: dict[str, Any] = {
         "n_points": int(v.size),
         "rms_residual": float(np.sqrt(np.mean((static_map_curve(v, *[params[k][0] for k in NAMES]) - F) ** 2))),
@@ -408,7 +435,8 @@ def fit_static_map(
             arr = np.array(draws)
             info["bootstrap_stderr"] = {k: float(s) for k, s in zip(NAMES, arr.std(axis=0, ddof=1))}
             info["bootstrap_n"] = len(draws)
-    res = IdentificationResult("static_map", params, units, info, data={"velocity": v, "force": F, "force_stderr": se}, plotter=_plot_static_map)
+    res = IdentificationResult("static_map", params, units, info, data={"velocity": v, "force": F, "force_stderr": se}, plotter=_plot_static_map,
+                               model_object=static_friction_si({k: p[0] for k, p in params.items()}, units))
     return res
 
 
@@ -443,6 +471,7 @@ def fit_static_map_from_run(
     IdentificationResult
         As :func:`fit_static_map`, with ``info["plateaus"]`` and the rejected ones.
     """
+    static_map_units(velocity_unit, force_unit)
     t = as_array("time", t, min_len=10)
     search = find_plateaus(t, position, force, **plateau_options)
     pl = search.plateaus
