@@ -91,7 +91,7 @@ def run(out: Path, *, plots: bool = True) -> dict[str, Any]:
         fig.axes[0].plot(cols["position"] * 1e6, sim, "k-", lw=0.6, alpha=0.7, label="identified GMS")
         fig.axes[0].legend(fontsize="small")
         fig.savefig(out / "gms_hysteresis.png", dpi=120)
-        for j, extra in enumerate(ident.plot()):
+        for j, extra in enumerate(ident.plot().values()):
             extra.savefig(out / f"gms_identification_{j + 1}.png", dpi=120)
 
     # 3. closed-loop glitches: the paper's Fig. 14 scenario (see docs/glitch.md)

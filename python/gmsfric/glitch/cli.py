@@ -16,7 +16,9 @@ from .. import presets
 from ..errors import DataError
 from ..models import GMS, StaticFriction, Stribeck
 from ..system import Plant
+from ..results import write_figures
 from .compensation import DOB_CUTOFF_HZ
+from .results import GlitchStudy
 from .scenario import DEFAULT_GAINS, PAPER_STATIC_V_LINEAR, scenario_controller, table3_plant
 
 # unit strings of `gmsfric identify` files -> factor to SI
@@ -135,46 +137,26 @@ def run(args: argparse.Namespace) -> int:
     circ = run_circle(plant, static, gms, ctrl, radius=args.amplitude, frequency=args.frequency, dt=args.dt, static_v_linear=vlin)
     comp = run_compensation(plant, None, static, gms, ctrl, advance=args.ff_advance, ff_gain=args.ff_gain, static_v_linear=vlin,  # type: ignore[arg-type]
                             dob_cutoff_hz=args.dob_cutoff, **common)
-    out: dict[str, Any] = {
-        "sinusoid": sin.summary(),
-        "circle": circ.summary(),
-        "compensation": comp.summary(),
-        "parameters": {
-            "amplitude_m": args.amplitude, "frequency_hz": args.frequency, "dt_s": args.dt,
-            "kp": args.kp, "ki": args.ki, "kd": args.kd, "tf_s": args.tf, "drive_limit_V": args.drive_limit,
-            "ff_gain": args.ff_gain, "ff_advance_s": plant.delay if args.ff_advance is None else args.ff_advance,
-            "plant": {"a": plant.a, "b": plant.b, "c": plant.c, "delay": plant.delay, "force_gain": plant.force_gain},
-            "table3": bool(args.table3),
-            "static_v_linear_m_s": vlin,
-            "static_reading": "\"static\": the static map with a linear region below static_v_linear_m_s (Simulink/Simscape "
-            "friction block, cannot stick); \"static_stiction\": the same map set-valued at v = 0 (true stiction)",
-            "dob_cutoff_hz": args.dob_cutoff,
-            "peak_error_definition": "max |e - e_lin| in the window after each reversal (e_lin: frictionless error of the same loop)",
-        },
+    parameters = {
+        "amplitude_m": args.amplitude, "frequency_hz": args.frequency, "dt_s": args.dt,
+        "kp": args.kp, "ki": args.ki, "kd": args.kd, "tf_s": args.tf, "drive_limit_V": args.drive_limit,
+        "ff_gain": args.ff_gain, "ff_advance_s": plant.delay if args.ff_advance is None else args.ff_advance,
+        "plant": {"a": plant.a, "b": plant.b, "c": plant.c, "delay": plant.delay, "force_gain": plant.force_gain},
+        "table3": bool(args.table3),
+        "static_v_linear_m_s": vlin,
+        "static_reading": "\"static\": the static map with a linear region below static_v_linear_m_s (Simulink/Simscape "
+        "friction block, cannot stick); \"static_stiction\": the same map set-valued at v = 0 (true stiction)",
+        "dob_cutoff_hz": args.dob_cutoff,
+        "peak_error_definition": "max |e - e_lin| in the window after each reversal (e_lin: frictionless error of the same loop)",
     }
-    text = json.dumps(out, indent=2)
+    study = GlitchStudy(sin, circ, comp, parameters)
     if args.json == "-":
-        print(text)
+        print(study.to_json())
     elif args.json:
-        Path(args.json).write_text(text + "\n")
+        study.to_json(args.json)
     if args.plot:
-        from .plots import plot_circle_polar, plot_compensation, plot_tracking_errors
-
-        d = Path(args.plot)
-        d.mkdir(parents=True, exist_ok=True)
-        for name, fig in (("glitch_tracking_errors", plot_tracking_errors(sin)), ("glitch_circle_polar", plot_circle_polar(circ)),
-                          ("glitch_compensation", plot_compensation(comp))):
-            fig.savefig(d / f"{name}.png", dpi=110)
-    s = {k: v["peak_error_m"] for k, v in out["sinusoid"].items()}
-    c = out["compensation"]
-    print(
-        "sinusoid peak glitch [µm]: " + ", ".join(f"{k} {v * 1e6:.3f}" for k, v in s.items())
-        + f"; compensation: none {c['none']['peak_error_m'] * 1e6:.3f}, static FF {c['static_feedforward']['peak_error_m'] * 1e6:.3f}"
-        f" ({c['static_feedforward']['reduction_percent']:.1f} %), GMS FF {c['gms_feedforward']['peak_error_m'] * 1e6:.3f}"
-        f" ({c['gms_feedforward']['reduction_percent']:.1f} %), DOB {c['dob']['peak_error_m'] * 1e6:.3f}"
-        f" ({c['dob']['reduction_percent']:.1f} %)",
-        file=sys.stderr,
-    )
+        write_figures(study.plot(), args.plot)
+    print(study.table(), file=sys.stderr)
     return 0
 
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from ..errors import DataError
 from ..io import load_columns, read_table
+from ..results import write_figures
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -71,7 +71,7 @@ def _finish(res, args: argparse.Namespace) -> int:  # type: ignore[no-untyped-de
         res.to_json(args.json)
         print(f"wrote {args.json}")
     if args.plot:
-        for path in res.save_figures(args.plot):
+        for path in write_figures(res.plot(), args.plot):
             print(f"wrote {path}")
     return 0
 

@@ -331,7 +331,7 @@ def fit_plant(
                          {**units, "force_gain": "N/V" if force_gain is None else force_gain_unit})
     except InvalidInputError:  # pragma: no cover
         pass
-    return IdentificationResult("plant", params, units, info, data={"frf": frf, "fit_f": f}, plotter=_plot_plant, model_object=plant)
+    return IdentificationResult("plant", params, units, info, data={"frf": frf, "fit_f": f, "input_unit": input_unit, "output_unit": output_unit}, model_object=plant)
 
 
 def plant_to_control(result: IdentificationResult, pade_order: int | None = None) -> Any:
@@ -347,39 +347,3 @@ def plant_to_control(result: IdentificationResult, pade_order: int | None = None
     else:
         tf.delay = tau
     return tf
-
-
-def bode_figure(curves: list[tuple[str, NDArray[np.float64], NDArray[np.complex128], dict]], coherence: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None, title: str = "") -> Any:
-    """Bode magnitude/phase (and coherence) of several responses ``(label, f, H, style)``."""
-    from ..plotting import new_figure
-
-    n = 3 if coherence is not None else 2
-    fig, axes = new_figure(n, 1, figsize=(7.0, 7.5 if n == 3 else 6.0), sharex=True)
-    for label, f, H, style in curves:
-        axes[0].loglog(f, np.abs(H), label=label, **style)
-        axes[1].semilogx(f, np.degrees(np.unwrap(np.angle(H))), label=label, **style)
-    axes[0].set_ylabel("magnitude")
-    axes[1].set_ylabel("phase [deg]")
-    if coherence is not None:
-        axes[2].semilogx(coherence[0], coherence[1], "k-", lw=0.8)
-        axes[2].set_ylabel("coherence")
-        axes[2].set_ylim(0, 1.05)
-    axes[-1].set_xlabel("frequency [Hz]")
-    axes[0].legend(fontsize="small")
-    axes[0].set_title(title)
-    for ax in axes:
-        ax.grid(True, which="both", alpha=0.3)
-    return fig
-
-
-def _plot_plant(res: IdentificationResult) -> list:
-    frf: FRF = res.data["frf"].select(0.0, float(res.data["fit_f"].max()))
-    p = [res.value(k) for k in PLANT_NAMES]
-    T = float(res.info.get("zoh_dt", 0.0))
-    fig = bode_figure(
-        [("measured H1", frf.f, frf.H, {"color": "0.5", "lw": 0.8}), ("eq. 1 fit", frf.f, plant_response(frf.f, *p, T), {"color": "C0", "lw": 1.5})],
-        (frf.f, frf.coherence),
-        title="FRF and plant fit (cf. paper Fig. 3)",
-    )
-    fig.set_label("bode")
-    return [fig]

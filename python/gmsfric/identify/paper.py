@@ -12,9 +12,7 @@ read; see ``docs/identification.md``.
 from __future__ import annotations
 
 import argparse
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,7 +23,8 @@ from ..presets import PaperReading
 from ..system import Plant
 from .frf import estimate_frf, fit_plant
 from .presliding import fit_presliding
-from .results import IdentificationResult, _jsonable
+from ..results import Result, write_figures
+from .results import IdentificationResult
 from .revision import revise_plant
 from ..presets import Table3Reading
 from .rig import VirtualRig
@@ -68,8 +67,11 @@ class ReplaySettings:
 
 
 @dataclass
-class Replay:
-    """Results of :func:`replay_paper`."""
+class Replay(Result):
+    """Results of :func:`replay_paper` (the shared result protocol of :mod:`gmsfric.results`;
+    JSON fields ``tables`` and ``truth``)."""
+
+    kind = "paper"
 
     settings: ReplaySettings
     truth: dict[str, Any]
@@ -79,24 +81,36 @@ class Replay:
     revised_static: IdentificationResult
     revised_gms: IdentificationResult
     tables: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict, repr=False)
+    diagnostics: list[Any] = field(default_factory=list, repr=False)
 
-    def figures(self) -> dict[str, Any]:
+    def _body(self) -> dict[str, Any]:
+        return {"tables": self.tables, "truth": self.truth}
+
+    def plot(self) -> dict[str, Any]:
         """The paper's figures: Fig. 3, 5, 6, 7, 10, 11, 12, 13 equivalents."""
         figs = {}
         sm = self.static_map.plot()
-        figs["fig5_static_map"] = sm[0]
-        if len(sm) > 1:
-            figs["fig4_plateaus"] = sm[1]
+        figs["fig5_static_map"] = sm["static_map_fit"]
+        if "static_map_plateaus" in sm:
+            figs["fig4_plateaus"] = sm["static_map_plateaus"]
         ps = self.presliding.plot()
-        figs["fig7_virgin_curve"] = ps[0]
-        if len(ps) > 1:
-            figs["fig6_hysteresis"] = ps[1]
-        figs["fig3_frf"] = self.plant.plot()[0]
-        c, r = self.revised_static.plot()
-        figs["fig10_combined_static"], figs["fig11_revised_static"] = c, r
-        c, r = self.revised_gms.plot()
-        figs["fig12_combined_gms"], figs["fig13_revised_gms"] = c, r
+        figs["fig7_virgin_curve"] = ps["presliding_virgin"]
+        if "presliding_hysteresis" in ps:
+            figs["fig6_hysteresis"] = ps["presliding_hysteresis"]
+        figs["fig3_frf"] = self.plant.plot()["plant_bode"]
+        rs = self.revised_static.plot()
+        figs["fig10_combined_static"], figs["fig11_revised_static"] = rs["revised_plant_combined"], rs["revised_plant_revised"]
+        rg = self.revised_gms.plot()
+        figs["fig12_combined_gms"], figs["fig13_revised_gms"] = rg["revised_plant_combined"], rg["revised_plant_revised"]
         return figs
+
+    #: The figures under their historical name.
+    figures = plot
+
+    def table(self) -> str:
+        """Printed / true / identified values for every table of the paper."""
+        return self.report()
 
     def report(self) -> str:
         lines = []
@@ -231,12 +245,9 @@ def _run(args: argparse.Namespace) -> int:
     print("stiffness and damping a linear fit (or a static map) cannot represent; the GMS revision recovers the mechanics.")
     print(f"static-map plateaus used: {rep.static_map.info.get('n_plateaus')} (rejected {rep.static_map.info.get('n_rejected')})")
     if args.json:
-        Path(args.json).write_text(json.dumps(_jsonable({"tables": rep.tables, "truth": rep.truth}), indent=2) + "\n")
+        rep.to_json(args.json)
         print(f"wrote {args.json}")
     if args.out:
-        d = Path(args.out)
-        d.mkdir(parents=True, exist_ok=True)
-        for name, fig in rep.figures().items():
-            fig.savefig(d / f"{name}.png", dpi=110)
-        print(f"wrote figures to {d}")
+        write_figures(rep.plot(), args.out)
+        print(f"wrote figures to {args.out}")
     return 0

@@ -490,57 +490,7 @@ def fit_presliding(
     info["break_force"] = float(wq.sum())
     info["c"] = c
     model = _make_gms(kq, wq, c, stribeck, sigma, slip_law)
-    data = {"t": t, "x": x, "F": F, "virgin": vc, "virgin_k": k, "virgin_d": d, "stribeck": stribeck, "sigma": sigma, "slip_law": slip_law, "model": model}
-    return IdentificationResult("presliding", params, units, info, data=data, plotter=_plot_presliding,
+    data = {"t": t, "x": x, "F": F, "virgin": vc, "virgin_k": k, "virgin_d": d, "stribeck": stribeck, "sigma": sigma, "slip_law": slip_law, "model": model,
+            "position_unit": position_unit, "force_unit": force_unit, "time_unit": time_unit}
+    return IdentificationResult("presliding", params, units, info, data=data,
                                 model_object=_gms_si(kq, wq, c, stribeck, sigma, slip_law, to_si))
-
-
-def _plot_presliding(res: IdentificationResult) -> list:
-    from ..plotting import new_figure
-
-    vc: VirginCurve = res.data["virgin"]
-    nb = res.info["n_blocks"]
-    k = np.array([res.value(f"k{i + 1}") for i in range(nb)])
-    w = np.array([res.value(f"w{i + 1}") for i in range(nb)])
-    d = w / k
-    pu = res.units.get("w1", "")
-    xu = res.units.get("k1", "/").split("/")[-1]
-    fig, (ax, axl) = new_figure(1, 2, figsize=(11.0, 4.5))
-    fig.set_label("virgin")
-    uu = np.linspace(0, vc.u_bin.max(), 400)
-    ax.plot(vc.u, vc.g, ",", color="0.7", label="Masing branches (halved, shifted)")
-    ax.plot(vc.u_bin, vc.g_bin, "k.", ms=4, label="binned virgin curve")
-    ax.plot(uu, virgin_model(uu, k, d), "C0-", label=f"{nb} blocks")
-    ax.plot(d, virgin_model(d, k, d), "rs", ms=5, label="knots")
-    ax.set_xlabel(f"displacement [{xu}]")
-    ax.set_ylabel(f"force [{pu}]")
-    ax.set_title("virgin curve with knots (cf. paper Fig. 7)")
-    ax.legend(fontsize="small")
-    ul = np.geomspace(vc.u_bin.min(), vc.u_bin.max(), 400)
-    axl.semilogx(vc.u_bin, vc.g_bin, "k.", ms=4)
-    axl.semilogx(ul, virgin_model(ul, k, d), "C0-")
-    for di in d:
-        axl.axvline(di, color="r", lw=0.6, ls=":")
-    axl.set_xlabel(f"displacement [{xu}] (log)")
-    for a in (ax, axl):
-        a.grid(True, alpha=0.3)
-    figs = [fig]
-    model = res.data.get("model")  # in the data's units, like t, x and F
-    if model is not None:
-        t, x, F = res.data["t"], res.data["x"], res.data["F"]
-        sim = simulate_friction(model, t, x)
-        fig2, (a1, a2) = new_figure(2, 1, figsize=(7.0, 7.0))
-        fig2.set_label("hysteresis")
-        a1.plot(x, F, ",", color="0.5", label="measured")
-        a1.plot(x, sim, "C0-", lw=0.8, label="identified GMS")
-        a1.set_xlabel(f"position [{xu}]")
-        a1.set_ylabel(f"force [{pu}]")
-        a1.legend(fontsize="small")
-        a1.set_title("pre-sliding hysteresis (cf. paper Fig. 6)")
-        a2.plot(t, F - sim, "k-", lw=0.5)
-        a2.set_xlabel("time")
-        a2.set_ylabel("residual")
-        for a in (a1, a2):
-            a.grid(True, alpha=0.3)
-        figs.append(fig2)
-    return figs

@@ -2,38 +2,22 @@
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from ..results import Result, jsonable
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
 
-def _jsonable(value: Any) -> Any:
-    """Plain-JSON version of ``value`` (non-finite floats become ``None``)."""
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [_jsonable(v) for v in value.tolist()]
-    if isinstance(value, (np.integer,)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    return value
-
-
 @dataclass
-class IdentificationResult:
-    """Identified parameters with standard errors.
+class IdentificationResult(Result):
+    """Identified parameters with standard errors (the shared result protocol of
+    :mod:`gmsfric.results`: ``to_dict``, ``to_json``, ``table``, ``plot``, ``save``).
 
     Attributes
     ----------
@@ -47,6 +31,14 @@ class IdentificationResult:
         JSON-able extras (number of points, fit cost, information criteria, ...).
     data : dict
         Arrays kept for the figures (not exported to JSON).
+    model_object : object or None
+        The identified model in SI (``StaticFriction``, ``GMS``, ``Plant``).
+    covariance : (list of str, ndarray) or None
+        Names and covariance matrix of the parameters, in the data's own units.
+    provenance : dict
+        Input files, columns, units and command line (see :func:`gmsfric.results.provenance`).
+    diagnostics : list
+        Findings about the fit's reliability (empty when there are none).
     """
 
     model: str
@@ -54,8 +46,14 @@ class IdentificationResult:
     units: dict[str, str] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
     data: dict[str, Any] = field(default_factory=dict, repr=False)
-    plotter: Callable[["IdentificationResult"], "list[Figure]"] | None = field(default=None, repr=False)
     model_object: Any = field(default=None, repr=False)
+    covariance: tuple[list[str], NDArray[np.float64]] | None = field(default=None, repr=False)
+    provenance: dict[str, Any] = field(default_factory=dict, repr=False)
+    diagnostics: list[Any] = field(default_factory=list, repr=False)
+
+    @property
+    def kind(self) -> str:  # type: ignore[override]
+        return f"identify.{self.model}"
 
     def value(self, name: str) -> float:
         """The identified value of ``name``."""
@@ -69,24 +67,17 @@ class IdentificationResult:
     def values(self) -> dict[str, float]:
         return {k: v for k, (v, _) in self.parameters.items()}
 
-    def to_dict(self) -> dict[str, Any]:
+    def _body(self) -> dict[str, Any]:
         """``{"model", "parameters": {name: {"value", "stderr"}}, "units", ...info}``."""
         out: dict[str, Any] = {
             "model": self.model,
-            "parameters": {k: {"value": _jsonable(v), "stderr": _jsonable(s)} for k, (v, s) in self.parameters.items()},
+            "parameters": {k: {"value": jsonable(v), "stderr": jsonable(s)} for k, (v, s) in self.parameters.items()},
             "units": dict(self.units),
         }
         for k, v in self.info.items():
             if k not in out:
-                out[k] = _jsonable(v)
+                out[k] = jsonable(v)
         return out
-
-    def to_json(self, path: str | Path | None = None, *, indent: int = 2) -> str:
-        """The JSON text of :meth:`to_dict`; also written to ``path`` when given."""
-        text = json.dumps(self.to_dict(), indent=indent)
-        if path is not None:
-            Path(path).write_text(text + "\n")
-        return text
 
     def table(self) -> str:
         """A plain-text table ``name  value  stderr  unit``."""
@@ -102,24 +93,11 @@ class IdentificationResult:
                 lines.append("  ".join("-" * w for w in widths))
         return "\n".join(lines)
 
-    def plot(self) -> "list[Figure]":
-        """The figures of this fit (matplotlib ``Figure`` objects, no pyplot)."""
-        return [] if self.plotter is None else self.plotter(self)
+    def plot(self) -> dict[str, "Figure"]:
+        """The figures of this fit by file stem (matplotlib ``Figure`` objects, no pyplot)."""
+        from .plots import figures
 
-    def save_figures(self, directory: str | Path, prefix: str | None = None) -> list[Path]:
-        """Save :meth:`plot` as PNG files in ``directory`` (created); returns the paths."""
-        d = Path(directory)
-        d.mkdir(parents=True, exist_ok=True)
-        paths = []
-        for i, fig in enumerate(self.plot()):
-            name = fig.get_label() or f"{i}"
-            p = d / f"{prefix or self.model}_{name}.png"
-            fig.savefig(p, dpi=110)
-            paths.append(p)
-        return paths
-
-    def __str__(self) -> str:
-        return self.table()
+        return figures(self)
 
 
 def covariance_from_jacobian(jac: NDArray[np.float64], residual: NDArray[np.float64], n_params: int | None = None) -> NDArray[np.float64]:

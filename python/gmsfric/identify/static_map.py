@@ -19,7 +19,7 @@ from scipy.optimize import least_squares
 from .. import units as _units
 from .._progress import Progress
 from .._validate import as_array, positive, same_length
-from ..errors import IdentificationError, InvalidInputError
+from ..errors import IdentificationError
 from ..models import StaticFriction, Stribeck
 from .results import IdentificationResult, covariance_from_jacobian
 
@@ -435,7 +435,7 @@ def fit_static_map(
             arr = np.array(draws)
             info["bootstrap_stderr"] = {k: float(s) for k, s in zip(NAMES, arr.std(axis=0, ddof=1))}
             info["bootstrap_n"] = len(draws)
-    res = IdentificationResult("static_map", params, units, info, data={"velocity": v, "force": F, "force_stderr": se}, plotter=_plot_static_map,
+    res = IdentificationResult("static_map", params, units, info, data={"velocity": v, "force": F, "force_stderr": se},
                                model_object=static_friction_si({k: p[0] for k, p in params.items()}, units))
     return res
 
@@ -488,45 +488,3 @@ def fit_static_map_from_run(
     res.info["plateaus"] = [{"t_start": float(t[p.start]), "t_stop": float(t[p.stop - 1]), "velocity": p.velocity, "force": p.force, "force_stderr": p.force_stderr} for p in pl]
     res.data.update(t=t, position=np.asarray(position, float), raw_force=np.asarray(force, float), plateaus=pl, rejected=search.rejected)
     return res
-
-
-def _plot_static_map(res: IdentificationResult) -> list:
-    from ..plotting import new_figure
-
-    v, F, se = res.data["velocity"], res.data["force"], res.data["force_stderr"]
-    p = [res.value(k) for k in NAMES]
-    figs = []
-    fig, (ax, axr) = new_figure(2, 1, figsize=(7.0, 6.0), sharex=True)
-    fig.set_label("fit")
-    vmax = np.abs(v).max()
-    vmin = np.abs(v[v != 0]).min()
-    grid = np.geomspace(vmin / 3, vmax * 1.1, 300)
-    grid = np.concatenate((-grid[::-1], grid))
-    ax.plot(grid, static_map_curve(grid, *p), "C0-", label="eq. 2 fit")
-    ax.errorbar(v, F, yerr=se if np.any(se != 1) else None, fmt="k.", ms=4, label="plateau averages")
-    ax.set_xscale("symlog", linthresh=vmin)
-    ax.set_ylabel(f"force [{res.units.get('fc', '')}]")
-    ax.legend(fontsize="small")
-    ax.set_title("static friction map (cf. paper Fig. 5)")
-    axr.plot(v, F - static_map_curve(v, *p), "k.", ms=4)
-    axr.axhline(0, color="C0", lw=0.8)
-    axr.set_ylabel("residual")
-    axr.set_xlabel(f"velocity [{res.units.get('vs', '')}]")
-    for a in (ax, axr):
-        a.grid(True, alpha=0.3)
-    figs.append(fig)
-    if "t" in res.data:
-        fig2, (a1, a2) = new_figure(2, 1, figsize=(8.0, 5.5), sharex=True)
-        fig2.set_label("plateaus")
-        t = res.data["t"]
-        a1.plot(t, res.data["position"], lw=0.8)
-        a2.plot(t, res.data["raw_force"], lw=0.5, color="0.6")
-        for pl in res.data["plateaus"]:
-            a2.plot(t[[pl.start, pl.stop - 1]], [pl.force, pl.force], "C1-", lw=2)
-        for pl in res.data["rejected"]:
-            a2.axvspan(t[pl.start], t[pl.stop - 1], color="r", alpha=0.15)
-        a1.set_ylabel("position")
-        a2.set_ylabel("force (kept plateaus; rejected shaded)")
-        a2.set_xlabel("time")
-        figs.append(fig2)
-    return figs

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 from typing import Any
 
 from ..errors import DataError
@@ -13,7 +11,7 @@ from ..io import read_table
 from ..system import Cascade
 from .closedloop import closed_loop_report
 from .data import load_axis_data
-from .report import format_table, save_figures
+from ..results import write_figures
 from .select import LoopConfig, run_loop
 
 
@@ -66,7 +64,6 @@ def main(args: argparse.Namespace) -> int:
     base = ("inertia", "viscous", "coulomb", "offset") if args.baseline == "reference" else ("inertia", "viscous", "coulomb")
     cfg = LoopConfig(holdout_fraction=args.holdout, baseline=base, progress=not args.quiet)
     result = run_loop(est, val, cfg)
-    sims = None
     if args.reference and args.kp is not None and args.kv is not None:
         kp, kv = est_table.number(args.kp, "kp"), est_table.number(args.kv, "kv")
         lim = args.drive_limit
@@ -74,11 +71,11 @@ def main(args: argparse.Namespace) -> int:
         runs = {"estimation": result.split.est}
         if val is not None:
             runs["validation"] = result.split.val
-        result.closed_loop, sims = closed_loop_report({"baseline": result.baseline, "final": result.final}, runs, ctrl)
-    print(format_table(result))
+        result.closed_loop, result.closed_loop_runs = closed_loop_report({"baseline": result.baseline, "final": result.final}, runs, ctrl)
+    print(result.table())
     if args.json:
-        Path(args.json).write_text(json.dumps(result.as_dict(), indent=2))
+        result.to_json(args.json)
     if args.plot:
-        paths = save_figures(result, args.plot, sims)
+        paths = write_figures(result.plot(), args.plot)
         print(f"{len(paths)} figures written to {args.plot}", file=sys.stderr)
     return 0
