@@ -10,9 +10,10 @@ from ._gmsfric import __version__
 from .errors import DataError, GmsfricError, IdentificationError, InvalidInputError, SimulationError
 from .models import GMS, LuGre, MaxwellSlip, StaticFriction, Stribeck, simulate_friction
 from .system import PID, PIDDOB, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
+from .model_io import load_model, save_model
 
 # Subpackages load on first use (they pull in scipy): ``gmsfric.identify.fit_static_map(...)``.
-_SUBMODULES = ("identify", "loop", "glitch", "batch", "presets", "io", "plotting", "demo")
+_SUBMODULES = ("identify", "loop", "glitch", "batch", "presets", "io", "plotting", "demo", "units", "results", "model_io", "curves")
 
 
 def __getattr__(name: str) -> object:
@@ -36,6 +37,8 @@ __all__ = [
     "Cascade",
     "ClosedLoopResult",
     "simulate_closed_loop",
+    "save_model",
+    "load_model",
     "GmsfricError",
     "InvalidInputError",
     "SimulationError",

@@ -4,89 +4,66 @@ compensation, as JSON (``--json``) and figures (``--plot``)."""
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
-from pathlib import Path
-from typing import Any, Mapping, Sequence
-
-
+from typing import Any, Sequence
 
 from .. import presets
 from ..errors import DataError
-from ..models import GMS, StaticFriction, Stribeck
-from ..system import Plant
+from ..model_io import load_model
+from ..models import GMS, MaxwellSlip, StaticFriction
 from ..results import write_figures
+from ..system import Plant
 from .compensation import DOB_CUTOFF_HZ
 from .results import GlitchStudy
 from .scenario import DEFAULT_GAINS, PAPER_STATIC_V_LINEAR, scenario_controller, table3_plant
 
-# unit strings of `gmsfric identify` files -> factor to SI
-_UNIT_FACTORS = {"mm": 1e-3, "mm/s": 1e-3, "N/mm": 1e3, "N s/mm": 1e3, "Ns/mm": 1e3, "N.s/mm": 1e3, "mm/(V s^2)": 1e-3, "mm/V/s^2": 1e-3, "ms": 1e-3}
-
-
-def _load_parameters(path: str) -> tuple[str, dict[str, float]]:
-    """``(model, {name: value in SI})`` from a ``gmsfric identify --json`` file."""
-    try:
-        doc = json.loads(Path(path).read_text())
-    except OSError as exc:
-        raise DataError(f"cannot read `{path}`: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise DataError(f"`{path}` is not JSON: {exc}") from None
-    if not isinstance(doc, Mapping) or not isinstance(doc.get("parameters"), Mapping):
-        raise DataError(f"`{path}` has no \"parameters\" object (expected the JSON of `gmsfric identify ... --json`)")
-    units = doc.get("units") or {}
-    out: dict[str, float] = {}
-    for name, entry in doc["parameters"].items():
-        value = entry.get("value") if isinstance(entry, Mapping) else entry
-        if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise DataError(f"`{path}`: parameter {name!r} has no finite value")
-        out[str(name)] = float(value) * _UNIT_FACTORS.get(str(units.get(name, "")).strip(), 1.0)
-    return str(doc.get("model", "")).lower(), out
+def _models_in(path: str, option: str) -> list[Any]:
+    """The models of a model file (a bundle gives all of its models)."""
+    m = load_model(path)
+    return list(m.values()) if isinstance(m, dict) else [m]
 
 
 def _plant_from(path: str | None) -> Plant:
     if path is None:
         return presets.paper_plant()
-    model, p = _load_parameters(path)
-    missing = [k for k in ("a", "b", "c") if k not in p]
-    if missing:
-        raise DataError(f"`--plant` file `{path}` lacks {missing} (model {model!r})")
-    return Plant(a=p["a"], b=p["b"], c=p["c"], delay=p.get("delay", presets.PAPER_EQ1["delay"]), force_gain=p.get("force_gain", 1.0))
+    plants = [m for m in _models_in(path, "--plant") if isinstance(m, Plant)]
+    if len(plants) != 1:
+        raise DataError(f"`--plant` file {path} holds {len(plants)} plants; it needs exactly one (a `gmsfric identify plant --force-gain G --json` file)")
+    return plants[0]
 
 
 def _frictions_from(paths: Sequence[str]) -> tuple[StaticFriction, GMS]:
-    static_p: dict[str, float] | None = None
-    blocks: dict[str, float] | None = None
+    """The static map and the GMS of the glitch studies from ``--friction`` files.
+
+    A GMS file is used as it is; pre-sliding blocks (a Maxwell-slip model, e.g. from an older
+    ``identify presliding`` file) go on a static map's Stribeck curve and viscous term with
+    ``c = 1/Vs`` (paper eq. 6).  Given together with a static-map file, the blocks of either go on
+    that map.  Without a static map file the paper's is used; without blocks, the paper's."""
+    static: StaticFriction | None = None
+    gms: GMS | None = None
+    blocks: tuple[list[float], list[float]] | None = None
     for path in paths:
-        model, p = _load_parameters(path)
-        if any(n.startswith("k") and n[1:].isdigit() for n in p):
-            blocks = p
-            if {"fc", "fs", "vs"} <= set(p) and static_p is None:
-                static_p = p
-        elif {"fc", "fs", "vs"} <= set(p):
-            static_p = p
-        else:
-            raise DataError(f"`--friction` file `{path}` (model {model!r}) has neither fc/fs/vs nor k1../w1.. parameters")
-    static = presets.paper_static_friction()
-    if static_p is not None:
-        st = Stribeck(static_p["fc"], static_p["fs"], static_p["vs"], static_p.get("delta", 1.0))
-        static = StaticFriction(st, sigma=static_p.get("sigma", 0.0))
+        for m in _models_in(path, "--friction"):
+            if isinstance(m, StaticFriction):
+                if static is not None:
+                    raise DataError(f"`--friction` {path}: a second static map; give one")
+                static = m
+            elif isinstance(m, (GMS, MaxwellSlip)):
+                if blocks is not None:
+                    raise DataError(f"`--friction` {path}: a second pre-sliding model; give one")
+                gms = m if isinstance(m, GMS) else None
+                blocks = (list(m.k), list(m.break_forces if isinstance(m, GMS) else m.w))
+            else:
+                raise DataError(f"`--friction` {path} holds a {type(m).__name__}; the glitch studies take a static map and GMS blocks")
+    if gms is not None and static is None:
+        return presets.paper_static_friction(), gms
+    static = presets.paper_static_friction() if static is None else static
     if blocks is None:
-        if static_p is None:
-            return static, presets.paper_gms()
         ref = presets.paper_gms()
-        gms = GMS(static.stribeck, ref.k, ref.alpha, 1.0 / static.stribeck.vs, static.sigma, ref.slip_law)
-        return static, gms
-    n = sorted(int(k[1:]) for k in blocks if k.startswith("k") and k[1:].isdigit())
-    try:
-        k = [blocks[f"k{i}"] for i in n]
-        w = [blocks[f"w{i}"] for i in n]
-    except KeyError as exc:
-        raise DataError(f"`--friction` block parameters incomplete: missing {exc.args[0]}") from None
-    c = blocks.get("c", 1.0 / static.stribeck.vs)
-    gms = GMS.from_break_forces(k, w, c, stribeck=static.stribeck, sigma=static.sigma)
-    return static, gms
+        if not paths:
+            return static, ref
+        return static, GMS(static.stribeck, ref.k, ref.alpha, 1.0 / static.stribeck.vs, static.sigma, ref.slip_law)
+    return static, GMS.from_break_forces(blocks[0], blocks[1], 1.0 / static.stribeck.vs, stribeck=static.stribeck, sigma=static.sigma)
 
 
 def register(subparsers: Any) -> None:
@@ -99,9 +76,10 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("--json", metavar="OUT", help="write the results as JSON to OUT ('-' = stdout)")
     p.add_argument("--plot", metavar="DIR", help="save the figures as PNG in DIR")
-    p.add_argument("--plant", metavar="FILE", help="plant JSON from `gmsfric identify` (a b c [delay force_gain]); default eq. 1")
+    p.add_argument("--plant", metavar="FILE", help="plant model file (`gmsfric identify plant --force-gain G --json`, or gmsfric.save_model); default eq. 1")
     p.add_argument("--table3", action="store_true", help="use Table 3's revised plant per friction model (docs/glitch.md)")
-    p.add_argument("--friction", metavar="FILE", action="append", default=[], help="friction JSON from `gmsfric identify` (static map: fc fs vs sigma delta; GMS blocks: k1..kN w1..wN [c]); repeatable")
+    p.add_argument("--friction", metavar="FILE", action="append", default=[], help="friction model file (`gmsfric identify static-map/presliding --json`, or gmsfric.save_model): a static map and/or GMS "
+                   "blocks; blocks given with a static map go on its Stribeck curve (c = 1/Vs); repeatable")
     p.add_argument("--amplitude", type=float, default=0.01, help="sinusoid amplitude and circle radius (m), default 0.01")
     p.add_argument("--frequency", type=float, default=0.01, help="sinusoid / circle frequency (Hz), default 0.01")
     p.add_argument("--kp", type=float, default=DEFAULT_GAINS["kp"], help="PID proportional gain (V/m)")

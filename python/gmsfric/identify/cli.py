@@ -59,6 +59,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     r.add_argument("--time-unit", default="s")
     r.add_argument("--input-unit", default="V")
     r.add_argument("--output-unit", default="m")
+    r.add_argument("--force-gain", type=float, metavar="G",
+                   help="force per input unit (motor constant; not identifiable from an FRF): needed for the JSON's model to be loadable as a Plant")
+    r.add_argument("--force-gain-unit", metavar="UNIT", help="unit of --force-gain (default N per --input-unit, N m per input unit for an angle output)")
     r.set_defaults(func=_plant)
 
 
@@ -115,7 +118,8 @@ def _plant(args: argparse.Namespace) -> int:
         mapping["excitation"] = args.excitation
     cols = load_columns(args.file, mapping, min_samples=256)
     frf = estimate_frf(cols["time"], cols["input"], cols["output"], excitation=cols.get("excitation"), nperseg=args.nperseg)
-    res = fit_plant(frf, fmin=args.fmin, fmax=args.fmax, zoh=not args.no_zoh, time_unit=args.time_unit, input_unit=args.input_unit, output_unit=args.output_unit)
+    res = fit_plant(frf, fmin=args.fmin, fmax=args.fmax, zoh=not args.no_zoh, time_unit=args.time_unit, input_unit=args.input_unit, output_unit=args.output_unit,
+                    force_gain=args.force_gain, force_gain_unit=args.force_gain_unit)
     return _finish(res, args)
 
 

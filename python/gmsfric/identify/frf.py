@@ -26,7 +26,7 @@ from .. import units as _units
 from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
 from ..system import Plant
-from .results import IdentificationResult, covariance_from_jacobian
+from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
 
 PLANT_NAMES = ("a", "b", "c", "delay")
 COHERENCE_CAP = 0.9995
@@ -331,7 +331,11 @@ def fit_plant(
                          {**units, "force_gain": "N/V" if force_gain is None else force_gain_unit})
     except InvalidInputError:  # pragma: no cover
         pass
-    return IdentificationResult("plant", params, units, info, data={"frf": frf, "fit_f": f, "input_unit": input_unit, "output_unit": output_unit}, model_object=plant)
+    # covariance of (a, b, c, delay) from that of (log a, b, c[, delay]); a held delay has none
+    jac_p = np.eye(4)[:, : cov.shape[0]] * np.array([a, 1.0, 1.0, 1.0])[:, None]
+    cov_p = transform_covariance(cov, jac_p)
+    return IdentificationResult("plant", params, units, info, data={"frf": frf, "fit_f": f, "input_unit": input_unit, "output_unit": output_unit},
+                                model_object=plant, covariance=(list(PLANT_NAMES), cov_p))
 
 
 def plant_to_control(result: IdentificationResult, pade_order: int | None = None) -> Any:

@@ -87,6 +87,17 @@ class Replay(Result):
     def _body(self) -> dict[str, Any]:
         return {"tables": self.tables, "truth": self.truth}
 
+    def models(self) -> dict[str, Any]:
+        """The identified models (SI): static map, GMS, plant and the two revised plants."""
+        parts = {"static_map": self.static_map, "gms": self.presliding, "plant": self.plant,
+                 "revised_plant_static": self.revised_static, "revised_plant_gms": self.revised_gms}
+        return {k: r.model_object for k, r in parts.items() if r.model_object is not None}
+
+    def _extras(self) -> dict[str, Any]:
+        from ..model_io import model_to_dict
+
+        return {"gmsfric_model": model_to_dict(self.models(), provenance=self.provenance)}
+
     def plot(self) -> dict[str, Any]:
         """The paper's figures: Fig. 3, 5, 6, 7, 10, 11, 12, 13 equivalents."""
         figs = {}

@@ -35,7 +35,7 @@ from .._progress import Progress
 from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
 from ..models import GMS, Stribeck, simulate_friction
-from .results import IdentificationResult, autocorrelation_inflation, covariance_from_jacobian
+from .results import IdentificationResult, autocorrelation_inflation, covariance_from_jacobian, transform_covariance
 
 
 @dataclass
@@ -469,6 +469,11 @@ def fit_presliding(
         floor_k = kq * (sigma_x / (wq / kq)) / np.sqrt(n_rev)
         se_k = np.sqrt(se_k**2 + floor_k**2)
         order = np.argsort(wq / kq)
+        # covariance of (k, w) from that of (log k, log w), with the quantisation floor on k
+        cov_kw = transform_covariance(cov, np.diag(np.concatenate((kq, wq))))
+        cov_kw[np.arange(nb), np.arange(nb)] += floor_k**2
+        perm = np.concatenate((order, nb + order))
+        cov_kw = cov_kw[np.ix_(perm, perm)]
         kq, wq, se_k, se_w = kq[order], wq[order], se_k[order], se_w[order]
         info["rms_residual"] = float(np.sqrt(np.mean((r.fun / weight[mask]) ** 2)))
         info["refined"] = True
@@ -479,6 +484,11 @@ def fit_presliding(
         kq, wq = k, w
         se_k = k * slk
         se_w = w * np.sqrt(np.clip(slk**2 + sld**2 + 2 * cov_kd, 0, np.inf))
+        # covariance of (k, w = k d) from that of (log k, log d), in the order of the sorted blocks
+        k_u, w_u = np.exp(vr.x[:nb]), np.exp(vr.x[:nb] + vr.x[nb:])
+        jac_kw = np.block([[np.diag(k_u), np.zeros((nb, nb))], [np.diag(w_u), np.diag(w_u)]])
+        perm = np.concatenate((order, nb + order))
+        cov_kw = transform_covariance(cov_v, jac_kw)[np.ix_(perm, perm)]
         info["refined"] = False
     params = {}
     for i in range(nb):
@@ -493,4 +503,4 @@ def fit_presliding(
     data = {"t": t, "x": x, "F": F, "virgin": vc, "virgin_k": k, "virgin_d": d, "stribeck": stribeck, "sigma": sigma, "slip_law": slip_law, "model": model,
             "position_unit": position_unit, "force_unit": force_unit, "time_unit": time_unit}
     return IdentificationResult("presliding", params, units, info, data=data,
-                                model_object=_gms_si(kq, wq, c, stribeck, sigma, slip_law, to_si))
+                                model_object=_gms_si(kq, wq, c, stribeck, sigma, slip_law, to_si), covariance=(list(params), cov_kw))

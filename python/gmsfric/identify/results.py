@@ -99,6 +99,61 @@ class IdentificationResult(Result):
 
         return figures(self)
 
+    def _quantities(self) -> dict[str, str]:
+        if self.model == "static_map":
+            return {"fc": "force", "fs": "force", "vs": "velocity", "sigma": "damping", "delta": "dimensionless"}
+        if self.model == "presliding":
+            return {k: ("stiffness" if k.startswith("k") else "force") for k in self.parameters}
+        return {"a": "plant_gain", "b": "rate", "c": "rate_squared", "delay": "time"}
+
+    def _axis(self) -> tuple[bool, str]:
+        """(rotary, drive SI unit) read from the units of the fit."""
+        from .. import units as _units
+
+        if self.model == "static_map":
+            return _units.is_rotary(self.units["vs"], "velocity"), "V"
+        if self.model == "presliding":
+            return _units.is_rotary(self.units["w1"], "force"), "V"
+        a = _units.parse(self.units["a"])
+        return a.dim[3] != 0, "A" if a.dim[4] != 0 else "V"
+
+    def model_document(self) -> dict[str, Any] | None:
+        """The ``gmsfric.model/1`` document of ``model_object`` (SI, units stated, covariance
+        converted to SI, this result's provenance); ``None`` without a model object.  A plant
+        identified without a force gain states none (it cannot be loaded as a Plant)."""
+        if self.model_object is None:
+            return None
+        from .. import units as _units
+        from ..model_io import model_to_dict
+
+        rotary, drive = self._axis()
+        cov = None
+        if self.covariance is not None:
+            names, matrix = self.covariance
+            q = self._quantities()
+            f = np.array([_units.factor(self.units[n], q[n]) for n in names])
+            cov = (list(names), np.asarray(matrix) * np.outer(f, f), [_units.si_unit(q[n], rotary, drive=drive) for n in names])
+        doc = model_to_dict(self.model_object, rotary=rotary, drive=drive, covariance=cov, provenance=self.provenance)
+        if self.model in ("plant", "revised_plant") and self.info.get("force_gain") is None:
+            del doc["parameters"]["force_gain"]
+        return doc
+
+    def _extras(self) -> dict[str, Any]:
+        doc = self.model_document()
+        return {} if doc is None else {"gmsfric_model": doc}
+
+
+def transform_covariance(cov: NDArray[np.float64], jac: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``J C J^T``: the covariance of ``y(x)`` from that of ``x`` to first order (``jac = dy/dx``).
+    Entries that are infinite (undetermined directions) stay infinite instead of becoming NaN."""
+    bad = ~np.isfinite(np.diag(cov))
+    c = np.where(np.isfinite(cov), cov, 0.0)
+    out = jac @ c @ jac.T
+    hit = (np.abs(jac[:, bad]) > 0).any(axis=1) if bad.any() else np.zeros(out.shape[0], dtype=bool)
+    out[hit, :] = np.inf
+    out[:, hit] = np.inf
+    return out
+
 
 def covariance_from_jacobian(jac: NDArray[np.float64], residual: NDArray[np.float64], n_params: int | None = None) -> NDArray[np.float64]:
     """``s^2 (J^T J)^-1`` with ``s^2 = |r|^2 / (m - p)``.

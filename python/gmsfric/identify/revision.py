@@ -24,7 +24,7 @@ from ..errors import IdentificationError, InvalidInputError
 from ..models import FrictionModel
 from ..system import PID, Controller, Plant, simulate_closed_loop
 from .frf import FRF, estimate_frf
-from .results import IdentificationResult, covariance_from_jacobian
+from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
 
 
 def combined_frf(
@@ -167,8 +167,9 @@ def revise_plant(
         "force_gain": plant.force_gain,
         "friction": type(friction).__name__ if friction is not None else None,
     }
+    jac_p = np.eye(4)[:, : cov.shape[0]] * np.array([revised.a, 1.0, 1.0, 1.0])[:, None]
     return IdentificationResult(
-        "revised_plant", params, units, info,
+        "revised_plant", params, units, info, covariance=(["a", "b", "c", "delay"], transform_covariance(cov, jac_p)),
         data={"measured": measured, "original_combined": orig_frf, "revised_combined": rev_frf, "original_plant": plant, "sel": sel},
         model_object=revised,
     )

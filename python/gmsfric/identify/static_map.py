@@ -21,7 +21,7 @@ from .._progress import Progress
 from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError
 from ..models import StaticFriction, Stribeck
-from .results import IdentificationResult, covariance_from_jacobian
+from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
 
 NAMES = ("fc", "fs", "vs", "sigma", "delta")
 MIN_POINTS = 6
@@ -404,6 +404,9 @@ def fit_static_map(
         raise IdentificationError(f"need at least 4 distinct speeds to fit 5 parameters, got {np.unique(np.abs(v)).size}")
     speed, mag, w = np.abs(v), np.sign(v) * F, 1.0 / se
     q, params, r = _fit_side(speed, mag, w, delta_bounds)
+    # covariance of (fc, fs, vs, sigma, delta) from that of (fc, fs, log vs, sigma, log delta)
+    fc_, fs_, vs_, sig_, de_ = _to_params(q)
+    cov = transform_covariance(covariance_from_jacobian(r.jac, r.fun), np.diag([1.0, 1.0, vs_, 1.0, de_]))
     info: dict[str, Any] = {
         "n_points": int(v.size),
         "rms_residual": float(np.sqrt(np.mean((static_map_curve(v, *[params[k][0] for k in NAMES]) - F) ** 2))),
@@ -436,7 +439,7 @@ def fit_static_map(
             info["bootstrap_stderr"] = {k: float(s) for k, s in zip(NAMES, arr.std(axis=0, ddof=1))}
             info["bootstrap_n"] = len(draws)
     res = IdentificationResult("static_map", params, units, info, data={"velocity": v, "force": F, "force_stderr": se},
-                               model_object=static_friction_si({k: p[0] for k, p in params.items()}, units))
+                               model_object=static_friction_si({k: p[0] for k, p in params.items()}, units), covariance=(list(NAMES), cov))
     return res
 
 
