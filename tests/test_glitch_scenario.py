@@ -255,7 +255,7 @@ def test_friction_and_plant_files_in_any_unit_are_read_in_si(tmp_path):
                               "units": {"k1": "mN/um", "k2": "mN/um", "w1": "mN", "w2": "mN"}}))
     static, gms = _frictions_from([str(sf), str(bf)])
     assert static.sigma == pytest.approx(6.98) and static.stribeck.vs == pytest.approx(4.5e-4)
-    assert gms.k == pytest.approx((3.2e6, 8.9e3)) and gms.break_forces == pytest.approx([0.033, 0.057])
+    assert gms.k == pytest.approx((3.2e6, 8.9e3)) and gms.alpha == pytest.approx((33 / 90, 57 / 90))
     assert gms.stribeck == static.stribeck and gms.c == pytest.approx(1 / 4.5e-4)
     pf = tmp_path / "plant.json"
     save_model(presets.emps_plant(), pf)
