@@ -31,7 +31,7 @@ from gmsfric.glitch import (
     scenario_controller,
     sinusoid_reference,
 )
-from gmsfric.glitch import cli as glitch_cli
+from gmsfric.cli import main as gmsfric_main
 from gmsfric.system import PIDDOB, simulate_closed_loop
 
 FAST = dict(dt=5e-4, periods=0.5)
@@ -214,7 +214,7 @@ def test_bad_scenario_input_names_argument():
 
 def test_cli_json_contract(tmp_path, capsys):
     out = tmp_path / "g.json"
-    rc = glitch_cli.main(["--json", str(out), "--dt", "1e-3", "--frequency", "0.05", "--plot", str(tmp_path / "figs")])
+    rc = gmsfric_main(["glitch", "--json", str(out), "--dt", "1e-3", "--frequency", "0.05", "--plot", str(tmp_path / "figs")])
     assert rc == 0
     d = json.loads(out.read_text())
     for k in ("none", "static", "gms", "static_stiction"):
@@ -232,14 +232,14 @@ def test_cli_friction_file_and_bad_file(tmp_path):
                                                                    dict(fc=0.3, fs=0.35, vs=4.5e-4, sigma=7.0, delta=1.0).items()},
                              "units": {"fc": "N", "fs": "N", "vs": "m/s", "sigma": "N s/m", "delta": "1"}}))
     out = tmp_path / "g.json"
-    assert glitch_cli.main(["--friction", str(f), "--json", str(out), "--dt", "1e-3", "--frequency", "0.05"]) == 0
+    assert gmsfric_main(["glitch", "--friction", str(f), "--json", str(out), "--dt", "1e-3", "--frequency", "0.05"]) == 0
     # --static-linear-region 0: the "static" entry is the true-stiction map
-    assert glitch_cli.main(["--static-linear-region", "0", "--json", str(out), "--dt", "1e-3", "--frequency", "0.05"]) == 0
+    assert gmsfric_main(["glitch", "--static-linear-region", "0", "--json", str(out), "--dt", "1e-3", "--frequency", "0.05"]) == 0
     d = json.loads(out.read_text())["sinusoid"]
     assert d["static"]["peak_error_m"] == d["static_stiction"]["peak_error_m"]
     bad = tmp_path / "bad.json"
     bad.write_text("{}")
-    assert glitch_cli.main(["--friction", str(bad), "--dt", "1e-3"]) == 2
+    assert gmsfric_main(["glitch", "--friction", str(bad), "--dt", "1e-3"]) == 2
 
 
 def test_friction_and_plant_files_in_any_unit_are_read_in_si(tmp_path):

@@ -63,7 +63,7 @@ class Table:
 BINARY_SUFFIXES = (".mat",)
 
 
-def check_input_file(path: str | Path, *, role: str = "input") -> Path:
+def check_input_file(path: str | Path, *, role: str = "file") -> Path:
     """Check that ``path`` is a readable regular file with content, and, unless it is a
     ``.mat`` file, UTF-8 text (not UTF-16, not binary).
 
@@ -76,7 +76,7 @@ def check_input_file(path: str | Path, *, role: str = "input") -> Path:
     if not p.exists():
         raise DataError(f"{p}: no such file")
     if p.is_dir():
-        raise DataError(f"{p}: is a directory, not a {role} file")
+        raise DataError(f"{p}: is a directory, not a {role}")
     if not p.is_file():
         raise DataError(f"{p}: not a regular file")
     if not os.access(p, os.R_OK):

@@ -464,7 +464,7 @@ def save_model(
 
 
 def _read_json(path: str | Path) -> Any:
-    p = check_input_file(path, role="model")
+    p = check_input_file(path, role="model file")
     try:
         return json.loads(p.read_text(encoding="utf-8"))
     except UnicodeDecodeError as exc:

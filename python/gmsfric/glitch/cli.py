@@ -4,20 +4,20 @@ compensation, as JSON (``--json``) and figures (``--plot``)."""
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any, Sequence
 
 from .. import presets
+from .._validate import allocation
+from ..cli import Run, declare_files, finite_float, log, non_negative_float, positive_float
 from ..errors import DataError
 from ..model_io import load_model
 from ..models import GMS, MaxwellSlip, StaticFriction
-from ..results import write_figures
 from ..system import Plant
 from .compensation import DOB_CUTOFF_HZ
 from .results import GlitchStudy
 from .scenario import DEFAULT_GAINS, PAPER_STATIC_V_LINEAR, scenario_controller, table3_plant
 
-def _models_in(path: str, option: str) -> list[Any]:
+def _models_in(path: str) -> list[Any]:
     """The models of a model file (a bundle gives all of its models)."""
     m = load_model(path)
     return list(m.values()) if isinstance(m, dict) else [m]
@@ -26,7 +26,7 @@ def _models_in(path: str, option: str) -> list[Any]:
 def _plant_from(path: str | None) -> Plant:
     if path is None:
         return presets.paper_plant()
-    plants = [m for m in _models_in(path, "--plant") if isinstance(m, Plant)]
+    plants = [m for m in _models_in(path) if isinstance(m, Plant)]
     if len(plants) != 1:
         raise DataError(f"`--plant` file {path} holds {len(plants)} plants; it needs exactly one (a `gmsfric identify plant --force-gain G --json` file)")
     return plants[0]
@@ -43,7 +43,7 @@ def _frictions_from(paths: Sequence[str]) -> tuple[StaticFriction, GMS]:
     gms: GMS | None = None
     blocks: tuple[list[float], list[float]] | None = None
     for path in paths:
-        for m in _models_in(path, "--friction"):
+        for m in _models_in(path):
             if isinstance(m, StaticFriction):
                 if static is not None:
                     raise DataError(f"`--friction` {path}: a second static map; give one")
@@ -80,26 +80,36 @@ def register(subparsers: Any) -> None:
     p.add_argument("--table3", action="store_true", help="use Table 3's revised plant per friction model (docs/glitch.md)")
     p.add_argument("--friction", metavar="FILE", action="append", default=[], help="friction model file (`gmsfric identify static-map/presliding --json`, or gmsfric.save_model): a static map and/or GMS "
                    "blocks; blocks given with a static map go on its Stribeck curve (c = 1/Vs); repeatable")
-    p.add_argument("--amplitude", type=float, default=0.01, help="sinusoid amplitude and circle radius (m), default 0.01")
-    p.add_argument("--frequency", type=float, default=0.01, help="sinusoid / circle frequency (Hz), default 0.01")
-    p.add_argument("--kp", type=float, default=DEFAULT_GAINS["kp"], help="PID proportional gain (V/m)")
-    p.add_argument("--ki", type=float, default=DEFAULT_GAINS["ki"], help="PID integral gain (V/(m s))")
-    p.add_argument("--kd", type=float, default=DEFAULT_GAINS["kd"], help="PID derivative gain (V s/m)")
-    p.add_argument("--tf", type=float, default=DEFAULT_GAINS["tf"], help="derivative filter time constant (s)")
-    p.add_argument("--drive-limit", type=float, default=presets.PaperReading().drive_limit, help="drive limit (V)")
-    p.add_argument("--ff-gain", type=float, default=1.0, help="feedforward gain (1 = model force)")
-    p.add_argument("--ff-advance", type=float, default=None, help="feedforward time advance (s); default the plant delay")
-    p.add_argument("--dt", type=float, default=1e-4, help="simulation step (s), default 1e-4")
-    p.add_argument("--static-linear-region", type=float, default=PAPER_STATIC_V_LINEAR, metavar="M_S",
+    p.add_argument("--amplitude", type=positive_float, default=0.01, help="sinusoid amplitude and circle radius (m), default 0.01")
+    p.add_argument("--frequency", type=positive_float, default=0.01, help="sinusoid / circle frequency (Hz), default 0.01")
+    p.add_argument("--kp", type=non_negative_float, default=DEFAULT_GAINS["kp"], help="PID proportional gain (V/m)")
+    p.add_argument("--ki", type=non_negative_float, default=DEFAULT_GAINS["ki"], help="PID integral gain (V/(m s))")
+    p.add_argument("--kd", type=non_negative_float, default=DEFAULT_GAINS["kd"], help="PID derivative gain (V s/m)")
+    p.add_argument("--tf", type=non_negative_float, default=DEFAULT_GAINS["tf"], help="derivative filter time constant (s)")
+    p.add_argument("--drive-limit", type=positive_float, default=presets.PaperReading().drive_limit, help="drive limit (V)")
+    p.add_argument("--ff-gain", type=finite_float, default=1.0, help="feedforward gain (1 = model force)")
+    p.add_argument("--ff-advance", type=finite_float, default=None, help="feedforward time advance (s); default the plant delay")
+    p.add_argument("--dt", type=positive_float, default=1e-4, help="simulation step (s), default 1e-4")
+    p.add_argument("--static-linear-region", type=non_negative_float, default=PAPER_STATIC_V_LINEAR, metavar="M_S",
                    help="linear-region velocity threshold (m/s) of the \"static\" map and of the static-map feedforward: "
                    "the paper's Simulink reading, default 1e-4 (Simscape's default); 0 = true stiction. The true-stiction map is "
                    "always reported as \"static_stiction\" too")
-    p.add_argument("--dob-cutoff", type=float, default=DOB_CUTOFF_HZ, metavar="HZ",
+    p.add_argument("--dob-cutoff", type=positive_float, default=DOB_CUTOFF_HZ, metavar="HZ",
                    help=f"Q-filter cutoff (Hz) of the disturbance observer reported as compensation \"dob\", default {DOB_CUTOFF_HZ:g}")
-    p.set_defaults(func=run)
+    declare_files(p, inputs=("plant", "friction"), outputs=("json",), output_dirs=("plot",), stdout=("json",))
+    p.set_defaults(func=_glitch)
 
 
-def run(args: argparse.Namespace) -> int:
+def _memory_needed(frequency: float, dt: float, plants: Sequence[Plant], lead_deg: float = 55.0) -> float:
+    """About how many bytes the three studies hold at once: ~8 float64 series per closed-loop run
+    (10 sinusoid, 8 circle and 6 compensation runs) plus the delay line of each run."""
+    n_sin = 1.0 / (frequency * dt)
+    n_circle = (1.0 + lead_deg / 360.0) / (frequency * dt)
+    n_delay = max(p.delay for p in plants) / dt
+    return 8.0 * (8 * (16 * n_sin + 8 * n_circle) + 24 * n_delay)
+
+
+def _glitch(args: argparse.Namespace, run: Run) -> int:
     """Run the three studies and write JSON / figures; returns the exit code."""
     from .circle import run_circle
     from .compensation import run_compensation
@@ -109,6 +119,8 @@ def run(args: argparse.Namespace) -> int:
     static, gms = _frictions_from(args.friction)
     ctrl = scenario_controller(args.kp, args.ki, args.kd, args.tf, args.drive_limit)
     plants = {"static": table3_plant("static"), "gms": table3_plant("gms")} if args.table3 else None
+    allocation(f"the glitch studies at --dt {args.dt:g} s and --frequency {args.frequency:g} Hz (plant delay {plant.delay:g} s)",
+               _memory_needed(args.frequency, args.dt, [plant, *(plants or {}).values()]))
     common = dict(amplitude=args.amplitude, frequency=args.frequency, dt=args.dt)
     vlin = args.static_linear_region
     sin = run_sinusoid(plant, static, gms, ctrl, plants=plants, static_v_linear=vlin, **common)  # type: ignore[arg-type]
@@ -128,34 +140,16 @@ def run(args: argparse.Namespace) -> int:
         "peak_error_definition": "max |e - e_lin| in the window after each reversal (e_lin: frictionless error of the same loop)",
     }
     study = GlitchStudy(sin, circ, comp, parameters)
+    study.provenance = run.provenance(units={"amplitude": "m", "frequency": "Hz", "dt": "s", "kp": "V/m", "ki": "V/(m s)", "kd": "V s/m",
+                                             "tf": "s", "drive_limit": "V", "ff_advance": "s", "static_linear_region": "m/s", "dob_cutoff": "Hz"})
     if args.json == "-":
         print(study.to_json())
     elif args.json:
-        study.to_json(args.json)
+        run.write_json(args.json, study)
     if args.plot:
-        write_figures(study.plot(), args.plot)
-    print(study.table(), file=sys.stderr)
+        run.write_figures(args.plot, study.plot())
+    log.info("%s", study.table())
     return 0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``gmsfric glitch`` alone (for tests and ``python -m gmsfric.glitch.cli``)."""
-    from ..errors import GmsfricError
-
-    parser = argparse.ArgumentParser(prog="gmsfric")
-    sub = parser.add_subparsers(dest="command")
-    register(sub)
-    args = parser.parse_args(["glitch", *(argv or [])])
-    try:
-        return int(args.func(args) or 0)
-    except GmsfricError as exc:
-        print(f"gmsfric glitch: error: {exc}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main(sys.argv[1:]))
-
-
-__all__ = ["register", "run", "main"]
-
+__all__ = ["register"]

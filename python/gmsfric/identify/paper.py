@@ -11,22 +11,19 @@ read; see ``docs/identification.md``.
 
 from __future__ import annotations
 
-import argparse
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .. import presets
 from ..models import StaticFriction, Stribeck
-from ..presets import PaperReading
+from ..presets import PaperReading, Table3Reading
 from ..system import Plant
 from .frf import estimate_frf, fit_plant
 from .presliding import fit_presliding
-from ..results import Result, write_figures
-from .results import IdentificationResult
+from .results import Replay
 from .revision import revise_plant
-from ..presets import Table3Reading
 from .rig import VirtualRig
 from .static_map import fit_static_map_from_run
 
@@ -64,86 +61,6 @@ class ReplaySettings:
     frf_band: tuple[float, float] = (0.5, 300.0)
     frf_fit_band: tuple[float, float] = (1.0, 300.0)
     seed: int = 0
-
-
-@dataclass
-class Replay(Result):
-    """Results of :func:`replay_paper` (the shared result protocol of :mod:`gmsfric.results`;
-    JSON fields ``tables`` and ``truth``)."""
-
-    kind = "paper"
-
-    settings: ReplaySettings
-    truth: dict[str, Any]
-    static_map: IdentificationResult
-    presliding: IdentificationResult
-    plant: IdentificationResult
-    revised_static: IdentificationResult
-    revised_gms: IdentificationResult
-    tables: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
-    provenance: dict[str, Any] = field(default_factory=dict, repr=False)
-    diagnostics: list[Any] = field(default_factory=list, repr=False)
-
-    def _body(self) -> dict[str, Any]:
-        return {"tables": self.tables, "truth": self.truth}
-
-    def models(self) -> dict[str, Any]:
-        """The identified models (SI): static map, GMS, plant and the two revised plants."""
-        parts = {"static_map": self.static_map, "gms": self.presliding, "plant": self.plant,
-                 "revised_plant_static": self.revised_static, "revised_plant_gms": self.revised_gms}
-        return {k: r.model_object for k, r in parts.items() if r.model_object is not None}
-
-    def _extras(self) -> dict[str, Any]:
-        from ..model_io import model_to_dict
-
-        return {"gmsfric_model": model_to_dict(self.models(), provenance=self.provenance)}
-
-    def plot(self) -> dict[str, Any]:
-        """The paper's figures: Fig. 3, 5, 6, 7, 10, 11, 12, 13 equivalents."""
-        figs = {}
-        sm = self.static_map.plot()
-        figs["fig5_static_map"] = sm["static_map_fit"]
-        if "static_map_plateaus" in sm:
-            figs["fig4_plateaus"] = sm["static_map_plateaus"]
-        ps = self.presliding.plot()
-        figs["fig7_virgin_curve"] = ps["presliding_virgin"]
-        if "presliding_hysteresis" in ps:
-            figs["fig6_hysteresis"] = ps["presliding_hysteresis"]
-        figs["fig3_frf"] = self.plant.plot()["plant_bode"]
-        rs = self.revised_static.plot()
-        figs["fig10_combined_static"], figs["fig11_revised_static"] = rs["revised_plant_combined"], rs["revised_plant_revised"]
-        rg = self.revised_gms.plot()
-        figs["fig12_combined_gms"], figs["fig13_revised_gms"] = rg["revised_plant_combined"], rg["revised_plant_revised"]
-        return figs
-
-    #: The figures under their historical name.
-    figures = plot
-
-    def table(self) -> str:
-        """Printed / true / identified values for every table of the paper."""
-        return self.report()
-
-    def report(self) -> str:
-        lines = []
-        for title, rows in self.tables.items():
-            lines.append(title)
-            head = ("parameter", "unit", "printed", "true", "identified", "stderr", "z")
-            body = [
-                (r["name"], r["unit"], _fmt(r["printed"]), _fmt(r["true"]), _fmt(r["value"]), _fmt(r["stderr"], 2), "-" if r["z"] is None else f"{r['z']:+.1f}")
-                for r in rows
-            ]
-            widths = [max(len(x[i]) for x in [head] + body) for i in range(len(head))]
-            lines.append("  " + "  ".join(h.ljust(w) if i < 2 else h.rjust(w) for i, (h, w) in enumerate(zip(head, widths))))
-            for b in body:
-                lines.append("  " + "  ".join(x.ljust(w) if i < 2 else x.rjust(w) for i, (x, w) in enumerate(zip(b, widths))))
-            lines.append("")
-        return "\n".join(lines)
-
-
-def _fmt(v: Any, digits: int = 5) -> str:
-    if v is None or (isinstance(v, float) and not np.isfinite(v)):
-        return "-"
-    return f"{v:.{digits}g}"
 
 
 def _row(name: str, unit: str, printed: float | None, true: float, value: float, stderr: float) -> dict[str, Any]:
@@ -235,30 +152,3 @@ def replay_paper(settings: ReplaySettings = ReplaySettings(), *, progress: bool 
             _row("C'", "1/s^2", printed[2], plant.c, *rv.parameters["c"]),
         ]
     return Replay(s, truth, sm, ps, pf, rv_s, rv_g, tables)
-
-
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = subparsers.add_parser("paper", help="replay the paper's identification on the virtual rig (true vs identified)", description=__doc__)
-    p.add_argument("--plot", "--out", dest="out", metavar="DIR", help="save the figures (Figs. 3-7, 10-13 equivalents) in DIR")
-    p.add_argument("--json", metavar="OUT", help="write the tables as JSON")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    p.set_defaults(func=_run)
-
-
-def _run(args: argparse.Namespace) -> int:
-    rep = replay_paper(ReplaySettings(seed=args.seed), progress=not args.quiet)
-    print("gmsfric paper: the paper's experiments replayed on the virtual rig (seed %d)" % args.seed)
-    print("printed = the paper's number, true = the rig (PaperReading defaults), z = (identified - true) / stderr\n")
-    print(rep.report())
-    print(f"GMS blocks: {rep.presliding.info['n_blocks']} (the paper's choice; ReplaySettings(n_blocks=None) lets BIC choose)")
-    print("Eq. 1 and the static-model Table 3 are biased on purpose: the rig's friction is GMS, whose pre-sliding")
-    print("stiffness and damping a linear fit (or a static map) cannot represent; the GMS revision recovers the mechanics.")
-    print(f"static-map plateaus used: {rep.static_map.info.get('n_plateaus')} (rejected {rep.static_map.info.get('n_rejected')})")
-    if args.json:
-        rep.to_json(args.json)
-        print(f"wrote {args.json}")
-    if args.out:
-        write_figures(rep.plot(), args.out)
-        print(f"wrote figures to {args.out}")
-    return 0

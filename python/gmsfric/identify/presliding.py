@@ -369,6 +369,8 @@ def fit_presliding(
     same_length("force", F, "time", t.size)
     if n_blocks is not None and (int(n_blocks) != n_blocks or n_blocks < 1):
         raise InvalidInputError(f"`n_blocks` must be a positive integer, got {n_blocks}")
+    if isinstance(max_blocks, bool) or not isinstance(max_blocks, (int, np.integer)) or max_blocks < 1:
+        raise InvalidInputError(f"`max_blocks` must be a positive integer, got {max_blocks!r}")
     vc = build_virgin_curve(t, x, F, n_bins=n_bins, resolution=resolution)
     n_pts = vc.u_bin.size + 1
     candidates = [int(n_blocks)] if n_blocks is not None else list(range(1, max_blocks + 1))

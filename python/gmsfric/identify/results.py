@@ -13,6 +13,8 @@ from ..results import Result, jsonable
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
+    from .paper import ReplaySettings
+
 
 @dataclass
 class IdentificationResult(Result):
@@ -141,6 +143,88 @@ class IdentificationResult(Result):
     def _extras(self) -> dict[str, Any]:
         doc = self.model_document()
         return {} if doc is None else {"gmsfric_model": doc}
+
+
+@dataclass
+class Replay(Result):
+    """Results of :func:`replay_paper` (the shared result protocol of :mod:`gmsfric.results`;
+    JSON fields ``tables`` and ``truth``)."""
+
+    kind = "paper"
+
+    settings: "ReplaySettings"
+    truth: dict[str, Any]
+    static_map: IdentificationResult
+    presliding: IdentificationResult
+    plant: IdentificationResult
+    revised_static: IdentificationResult
+    revised_gms: IdentificationResult
+    tables: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict, repr=False)
+    diagnostics: list[Any] = field(default_factory=list, repr=False)
+
+    def _body(self) -> dict[str, Any]:
+        return {"tables": self.tables, "truth": self.truth}
+
+    def models(self) -> dict[str, Any]:
+        """The identified models (SI): static map, GMS, plant and the two revised plants."""
+        parts = {"static_map": self.static_map, "gms": self.presliding, "plant": self.plant,
+                 "revised_plant_static": self.revised_static, "revised_plant_gms": self.revised_gms}
+        return {k: r.model_object for k, r in parts.items() if r.model_object is not None}
+
+    def _extras(self) -> dict[str, Any]:
+        from ..model_io import model_to_dict
+
+        return {"gmsfric_model": model_to_dict(self.models(), provenance=self.provenance)}
+
+    def plot(self) -> dict[str, Any]:
+        """The paper's figures: Fig. 3, 5, 6, 7, 10, 11, 12, 13 equivalents."""
+        figs = {}
+        sm = self.static_map.plot()
+        figs["fig5_static_map"] = sm["static_map_fit"]
+        if "static_map_plateaus" in sm:
+            figs["fig4_plateaus"] = sm["static_map_plateaus"]
+        ps = self.presliding.plot()
+        figs["fig7_virgin_curve"] = ps["presliding_virgin"]
+        if "presliding_hysteresis" in ps:
+            figs["fig6_hysteresis"] = ps["presliding_hysteresis"]
+        figs["fig3_frf"] = self.plant.plot()["plant_bode"]
+        rs = self.revised_static.plot()
+        figs["fig10_combined_static"], figs["fig11_revised_static"] = rs["revised_plant_combined"], rs["revised_plant_revised"]
+        rg = self.revised_gms.plot()
+        figs["fig12_combined_gms"], figs["fig13_revised_gms"] = rg["revised_plant_combined"], rg["revised_plant_revised"]
+        return figs
+
+    #: The figures under their historical name.
+    figures = plot
+
+    def table(self) -> str:
+        """Printed / true / identified values for every table of the paper."""
+        return self.report()
+
+    def report(self) -> str:
+        """The tables as text (the same as :meth:`table`)."""
+        lines = []
+        for title, rows in self.tables.items():
+            lines.append(title)
+            head = ("parameter", "unit", "printed", "true", "identified", "stderr", "z")
+            body = [
+                (r["name"], r["unit"], _fmt(r["printed"]), _fmt(r["true"]), _fmt(r["value"]), _fmt(r["stderr"], 2), "-" if r["z"] is None else f"{r['z']:+.1f}")
+                for r in rows
+            ]
+            widths = [max(len(x[i]) for x in [head] + body) for i in range(len(head))]
+            lines.append("  " + "  ".join(h.ljust(w) if i < 2 else h.rjust(w) for i, (h, w) in enumerate(zip(head, widths))))
+            for b in body:
+                lines.append("  " + "  ".join(x.ljust(w) if i < 2 else x.rjust(w) for i, (x, w) in enumerate(zip(b, widths))))
+            lines.append("")
+        return "\n".join(lines)
+
+
+def _fmt(v: Any, digits: int = 5) -> str:
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "-"
+    return f"{v:.{digits}g}"
+
 
 
 def transform_covariance(cov: NDArray[np.float64], jac: NDArray[np.float64]) -> NDArray[np.float64]:

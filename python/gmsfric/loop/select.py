@@ -23,7 +23,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from .._progress import Progress
-from ..errors import IdentificationError
+from .._validate import finite, non_negative
+from ..errors import IdentificationError, InvalidInputError
 from .data import AxisData
 from .effects import CATALOGUE, Effect
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, relative_error
@@ -79,6 +80,17 @@ class LoopConfig:
     sampling_hold: bool = True
     seed: int = 0
     progress: bool = True
+
+    def __post_init__(self) -> None:
+        f = finite("holdout_fraction", self.holdout_fraction)
+        if not 0.0 < f < 1.0:
+            raise InvalidInputError(f"`holdout_fraction` must be between 0 and 1 (exclusive), got {f}")
+        for name, low in (("n_blocks", 1), ("inner_folds", 2), ("max_effects", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+                raise InvalidInputError(f"`{name}` must be an integer >= {low}, got {v!r}")
+        finite("t_threshold", self.t_threshold)
+        non_negative("min_gain", self.min_gain)
 
 
 @dataclass
