@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
+from .. import curves
 from .. import units as _units
 from .._progress import Progress
 from .._validate import as_array, positive, same_length
@@ -173,8 +174,9 @@ def build_virgin_curve(
 
 
 def virgin_model(u: NDArray[np.float64], k: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``sum_i k_i min(u, d_i)`` for ``u >= 0``."""
-    return (k[:, None] * np.minimum(u[None, :], d[:, None])).sum(axis=0)
+    """``sum_i k_i min(u, d_i)`` for ``u >= 0``: the virgin curve of blocks with knots ``d_i``
+    (:func:`gmsfric.curves.virgin_curve` with break forces ``k_i d_i``)."""
+    return curves.virgin_curve(u, k, k * d)
 
 
 def _segment_dp(x: NDArray[np.float64], y: NDArray[np.float64], w: NDArray[np.float64], n_seg: int, min_pts: int = 2) -> list[int]:

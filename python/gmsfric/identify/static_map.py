@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
+from .. import curves
 from .. import units as _units
 from .._progress import Progress
 from .._validate import as_array, positive, same_length
@@ -28,9 +29,9 @@ MIN_POINTS = 6
 
 
 def static_map_curve(v: ArrayLike, fc: float, fs: float, vs: float, sigma: float, delta: float) -> NDArray[np.float64]:
-    """Paper eq. 2 evaluated at ``v`` (any consistent units)."""
-    v = np.asarray(v, dtype=float)
-    return np.sign(v) * (fc + (fs - fc) * np.exp(-np.abs(v / vs) ** delta)) + sigma * v
+    """Paper eq. 2 evaluated at ``v`` (any consistent units), parameters in the fit's order
+    (:func:`gmsfric.curves.static_map`)."""
+    return curves.static_map(v, fc, fs, vs, delta, sigma)
 
 
 #: Quantity of each parameter (for :mod:`gmsfric.units`).
