@@ -124,3 +124,10 @@ def test_paper_replay_quick():
     assert "Table 3" in rep.report()
     figs = rep.figures()
     assert {"fig5_static_map", "fig7_virgin_curve", "fig10_combined_static", "fig13_revised_gms"} <= set(figs)
+    # the JSON embeds the identified models (SI), readable by load_model
+    from gmsfric.model_io import model_from_dict
+
+    models = model_from_dict(rep.to_dict())
+    assert set(models) == {"static_map", "gms", "plant", "revised_plant_static", "revised_plant_gms"}
+    assert isinstance(models["gms"], GMS) and models["gms"] == rep.presliding.model_object
+    assert models["plant"].force_gain == presets.paper_plant().force_gain

@@ -396,7 +396,8 @@ def _legacy_identify(doc: Mapping[str, Any], source: str) -> Any:
     raw = dict(doc["parameters"])
     if key == "plant" and "force_gain" in doc and "force_gain" not in raw:
         raw["force_gain"] = doc["force_gain"]
-    unit_map = doc.get("units") if isinstance(doc.get("units"), Mapping) else {}
+    units_doc = doc.get("units")
+    unit_map: Mapping[str, Any] = units_doc if isinstance(units_doc, Mapping) else {}
     axis_param, axis_quantity, quantities = _LEGACY[key]
     if key == "presliding":
         quantities = {n: ("stiffness" if n.startswith("k") else "force") for n in raw}

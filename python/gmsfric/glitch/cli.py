@@ -17,18 +17,20 @@ from .compensation import DOB_CUTOFF_HZ
 from .results import GlitchStudy
 from .scenario import DEFAULT_GAINS, PAPER_STATIC_V_LINEAR, scenario_controller, table3_plant
 
-def _models_in(path: str) -> list[Any]:
-    """The models of a model file (a bundle gives all of its models)."""
+def _models_in(path: str) -> tuple[list[Any], bool]:
+    """The models of a model file and whether it is a bundle (several named models)."""
     m = load_model(path)
-    return list(m.values()) if isinstance(m, dict) else [m]
+    return (list(m.values()), True) if isinstance(m, dict) else ([m], False)
 
 
 def _plant_from(path: str | None) -> Plant:
     if path is None:
         return presets.paper_plant()
-    plants = [m for m in _models_in(path) if isinstance(m, Plant)]
+    models, _ = _models_in(path)
+    plants = [m for m in models if isinstance(m, Plant)]
     if len(plants) != 1:
-        raise DataError(f"`--plant` file {path} holds {len(plants)} plants; it needs exactly one (a `gmsfric identify plant --force-gain G --json` file)")
+        raise DataError(f"`--plant` file {path} holds {len(plants)} plants; it needs exactly one (a `gmsfric identify plant --force-gain G --json` "
+                        "file, or one saved with gmsfric.save_model)")
     return plants[0]
 
 
@@ -43,7 +45,12 @@ def _frictions_from(paths: Sequence[str]) -> tuple[StaticFriction, GMS]:
     gms: GMS | None = None
     blocks: tuple[list[float], list[float]] | None = None
     for path in paths:
-        for m in _models_in(path):
+        models, bundle = _models_in(path)
+        if bundle:  # e.g. `gmsfric paper --json`: its friction models
+            models = [m for m in models if isinstance(m, (StaticFriction, GMS, MaxwellSlip))]
+            if not models:
+                raise DataError(f"`--friction` {path} holds no friction model")
+        for m in models:
             if isinstance(m, StaticFriction):
                 if static is not None:
                     raise DataError(f"`--friction` {path}: a second static map; give one")

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .. import units as _units
 from ..plotting import new_figure
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -43,11 +44,12 @@ def plot_fit(result: "LoopResult") -> "Figure":
     axes[0].plot(t, y, "k", lw=0.8, label="measured")
     axes[0].plot(t, yb, lw=0.8, label="baseline")
     axes[0].plot(t, yf, lw=0.8, label="final")
-    axes[0].set_ylabel("force [N]")
+    fu = _units.display_unit("force", result.rotary)
+    axes[0].set_ylabel(f"force [{fu}]")
     axes[0].legend(fontsize="small")
     axes[1].plot(t, y - yb, ".", ms=1.5, label="baseline residual")
     axes[1].plot(t, y - yf, ".", ms=1.5, label="final residual")
-    axes[1].set_ylabel("residual [N]")
+    axes[1].set_ylabel(f"residual [{fu}]")
     axes[1].set_xlabel("time [s]")
     axes[1].legend(fontsize="small")
     for ax in axes:
@@ -55,8 +57,11 @@ def plot_fit(result: "LoopResult") -> "Figure":
     return fig
 
 
-def plot_closed_loop_runs(sims: dict[tuple[str, str], Any], runs: dict[str, Any]) -> "Figure":
+def plot_closed_loop_runs(sims: dict[tuple[str, str], Any], runs: dict[str, Any], *, rotary: bool = False) -> "Figure":
     """Closed-loop simulations against the measurement: position error and force."""
+    # tracking differences are small: micrometres (microradians) rather than the display unit
+    err_unit = "µrad" if rotary else "µm"
+    err_scale = 1e6
     names = sorted({r for _, r in sims})
     fig, axes = new_figure(2, max(1, len(names)), figsize=(6.0 * max(1, len(names)), 6.0))
     axes = axes.reshape(2, -1)
@@ -67,11 +72,11 @@ def plot_closed_loop_runs(sims: dict[tuple[str, str], Any], runs: dict[str, Any]
         for (m, r), res in sims.items():
             if r != rn:
                 continue
-            axes[0, j].plot(d.t, (res.position - d.position) * 1e6, lw=0.7, label=m)
+            axes[0, j].plot(d.t, (res.position - d.position) * err_scale, lw=0.7, label=m)
             axes[1, j].plot(d.t, g * res.command, lw=0.6, label=m)
         axes[0, j].set_title(rn, fontsize="medium")
-        axes[0, j].set_ylabel("simulated - measured position [µm]")
-        axes[1, j].set_ylabel("force [N]")
+        axes[0, j].set_ylabel(f"simulated - measured position [{err_unit}]")
+        axes[1, j].set_ylabel(f"force [{_units.display_unit('force', rotary)}]")
         axes[1, j].set_xlabel("time [s]")
         for ax in axes[:, j]:
             ax.grid(True, alpha=0.3)
@@ -79,42 +84,48 @@ def plot_closed_loop_runs(sims: dict[tuple[str, str], Any], runs: dict[str, Any]
     return fig
 
 
-def plot_finding(f: Finding) -> "Figure":
+def plot_finding(f: "Finding", *, rotary: bool = False) -> "Figure":
     """Figure of one residual test: residual against the variable with binned means, or the
-    cross-correlation / coherence / position periodogram."""
+    cross-correlation / coherence / position periodogram (display units of a linear or rotary axis)."""
+    fu = _units.display_unit("force", rotary)
     extra = "periodogram" in f.curve
     fig, axes = new_figure(1, 2 if extra else 1, figsize=(10.0 if extra else 6.5, 4.0))
     ax = axes[0]
     c = f.curve
     if "centres" in c:
         x = c["x"]
-        scale, unit = {"velocity": (1e3, "velocity [mm/s]"), "position": (1e3, "position [mm]"), "position_odd": (1e3, "position [mm]"),
-                       "time": (1.0, "time [s]"), "time_even": (1.0, "time [s]"), "acceleration": (1.0, "acceleration [m/s²]"),
-                       "reversal": (1.0, "log10 distance since reversal [m]")}[f.variable]
+        quantity, label = {"velocity": ("velocity", "velocity"), "position": ("position", "position"), "position_odd": ("position", "position"),
+                           "time": ("time", "time"), "time_even": ("time", "time"), "acceleration": ("acceleration", "acceleration")}.get(f.variable, ("", ""))
+        if quantity:
+            scale, shown = _units.to_display(1.0, quantity, rotary)
+            unit = f"{label} [{shown}]"
+        else:  # reversal: log10 of a distance in SI
+            scale, unit = 1.0, f"log10 distance since reversal [{_units.si_unit('position', rotary)}]"
         step = max(1, x.size // 4000)
         ax.plot(x[::step] * scale, c["y"][::step], ".", ms=1.5, alpha=0.3, color="0.5")
         ax.plot(c["centres"] * scale, c["means"], "o-", color="C3", label="binned mean")
         ax.set_xlabel(unit)
-        ax.set_ylabel("residual" + (" × sign(qd)" if f.variable in ("position_odd", "time", "reversal") else "") + " [N]")
+        ax.set_ylabel("residual" + (" × sign(qd)" if f.variable in ("position_odd", "time", "reversal") else "") + f" [{fu}]")
         lim = np.nanmax(np.abs(c["means"])) * 4 + 1e-9
         ax.set_ylim(-lim, lim)
     elif "xcorr" in c:
         ax.plot(c["lags_s"] * 1e3, c["xcorr"], "o-")
         ax.set_xlabel("lag of predicted force [ms]")
-        ax.set_ylabel("cross-correlation")
+        ax.set_ylabel("cross-correlation [1]")
     elif "coherence" in c:
         ax.plot(c["f"], c["coherence"], label="coherence(residual, qdd)")
         ax2 = ax.twinx()
         ax2.semilogy(c["psd_f"], c["psd"], color="C1", lw=0.8)
-        ax2.set_ylabel("residual PSD [N²/Hz]")
+        ax2.set_ylabel(f"residual PSD [({fu})²/Hz]")
         ax.set_xlabel("frequency [Hz]")
-        ax.set_ylabel("coherence")
+        ax.set_ylabel("coherence [1]")
     ax.set_title(f"{f.variable}: stat={f.statistic:.3g}, z={f.z:.1f}{' (significant)' if f.significant else ''}", fontsize="medium")
     ax.grid(True, alpha=0.3)
     if extra:
-        axes[1].semilogy(c["spatial_freq"] * 1e-3, c["periodogram"])
-        axes[1].set_xlabel("spatial frequency [1/mm]")
-        axes[1].set_ylabel("periodogram")
+        k, ku = _units.to_display(1.0, "inverse_position", rotary)
+        axes[1].semilogy(c["spatial_freq"] * k, c["periodogram"])
+        axes[1].set_xlabel(f"spatial frequency [{ku}]")
+        axes[1].set_ylabel(f"periodogram [({fu})²]")
         axes[1].set_title("residual in the position domain", fontsize="medium")
         axes[1].grid(True, alpha=0.3)
     return fig
@@ -126,12 +137,12 @@ def figures(result: "LoopResult") -> dict[str, "Figure"]:
     figs: dict[str, "Figure"] = {}
     for stage, fl in result.findings.items():
         for f in fl:
-            figs[f"residual_{stage}_{f.variable}"] = plot_finding(f)
+            figs[f"residual_{stage}_{f.variable}"] = plot_finding(f, rotary=result.rotary)
     figs["steps"] = plot_steps(result)
     figs["fit_validation"] = plot_fit(result)
     if result.closed_loop_runs:
         runs = {"estimation": result.split.est, "validation": result.split.val}
-        figs["closed_loop"] = plot_closed_loop_runs(result.closed_loop_runs, runs)
+        figs["closed_loop"] = plot_closed_loop_runs(result.closed_loop_runs, runs, rotary=result.rotary)
     return figs
 
 
