@@ -72,6 +72,17 @@ def test_plant_cli(tmp_path):
     assert js["model"] == "plant" and list(js["parameters"]) == ["a", "b", "c", "delay"]
     assert js["parameters"]["delay"]["value"] == pytest.approx(1.29e-3, rel=0.03)
     assert js["parameters"]["a"]["value"] == pytest.approx(plant.a, rel=0.01)
+    # without --force-gain the plant cannot be loaded (a default 1 N/V would scale friction silently)
+    from gmsfric import InvalidInputError, load_model
+
+    with pytest.raises(InvalidInputError, match="--force-gain"):
+        load_model(out)
+    assert main(["identify", "plant", f, "--time", "t", "--input", "u", "--output", "y", "--fmin", "1", "--fmax", "300", "--force-gain", "35.15",
+                 "--json", str(out), "-q"]) == 0
+    js = json.loads(out.read_text())
+    assert js["force_gain"] == 35.15 and js["units"]["force_gain"] == "N/V" and list(js["parameters"]) == ["a", "b", "c", "delay"]
+    loaded = load_model(out)
+    assert loaded.force_gain == 35.15 and loaded.a == pytest.approx(plant.a, rel=0.01)
 
 
 @pytest.mark.parametrize(

@@ -20,7 +20,7 @@ from .data import AxisData, load_axis_data
 from .effects import CATALOGUE, Effect
 from .idim import LinearModel, Preprocessing, Signals, fit_baseline, reference_model, relative_error
 from .residuals import Finding, analyse
-from .results import LoopResult, Step, format_table
+from .results import LoopResult, Step
 from .select import LoopConfig, run_loop
 
 __all__ = [
@@ -42,5 +42,4 @@ __all__ = [
     "run_loop",
     "simulate_model",
     "closed_loop_report",
-    "format_table",
 ]
