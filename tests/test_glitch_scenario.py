@@ -31,7 +31,7 @@ from gmsfric.glitch import (
     scenario_controller,
     sinusoid_reference,
 )
-from gmsfric.glitch import cli as glitch_cli
+from gmsfric.cli import main as gmsfric_main
 from gmsfric.system import PIDDOB, simulate_closed_loop
 
 FAST = dict(dt=5e-4, periods=0.5)
@@ -214,7 +214,7 @@ def test_bad_scenario_input_names_argument():
 
 def test_cli_json_contract(tmp_path, capsys):
     out = tmp_path / "g.json"
-    rc = glitch_cli.main(["--json", str(out), "--dt", "1e-3", "--frequency", "0.05", "--plot", str(tmp_path / "figs")])
+    rc = gmsfric_main(["glitch", "--json", str(out), "--dt", "1e-3", "--frequency", "0.05", "--plot", str(tmp_path / "figs")])
     assert rc == 0
     d = json.loads(out.read_text())
     for k in ("none", "static", "gms", "static_stiction"):
@@ -229,13 +229,38 @@ def test_cli_json_contract(tmp_path, capsys):
 def test_cli_friction_file_and_bad_file(tmp_path):
     f = tmp_path / "static.json"
     f.write_text(json.dumps({"model": "static_map", "parameters": {n: {"value": v, "stderr": 0.0} for n, v in
-                                                                   dict(fc=0.3, fs=0.35, vs=4.5e-4, sigma=7.0, delta=1.0).items()}}))
+                                                                   dict(fc=0.3, fs=0.35, vs=4.5e-4, sigma=7.0, delta=1.0).items()},
+                             "units": {"fc": "N", "fs": "N", "vs": "m/s", "sigma": "N s/m", "delta": "1"}}))
     out = tmp_path / "g.json"
-    assert glitch_cli.main(["--friction", str(f), "--json", str(out), "--dt", "1e-3", "--frequency", "0.05"]) == 0
+    assert gmsfric_main(["glitch", "--friction", str(f), "--json", str(out), "--dt", "1e-3", "--frequency", "0.05"]) == 0
     # --static-linear-region 0: the "static" entry is the true-stiction map
-    assert glitch_cli.main(["--static-linear-region", "0", "--json", str(out), "--dt", "1e-3", "--frequency", "0.05"]) == 0
+    assert gmsfric_main(["glitch", "--static-linear-region", "0", "--json", str(out), "--dt", "1e-3", "--frequency", "0.05"]) == 0
     d = json.loads(out.read_text())["sinusoid"]
     assert d["static"]["peak_error_m"] == d["static_stiction"]["peak_error_m"]
     bad = tmp_path / "bad.json"
     bad.write_text("{}")
-    assert glitch_cli.main(["--friction", str(bad), "--dt", "1e-3"]) == 2
+    assert gmsfric_main(["glitch", "--friction", str(bad), "--dt", "1e-3"]) == 2
+
+
+def test_friction_and_plant_files_in_any_unit_are_read_in_si(tmp_path):
+    """The factor-1000 bugs: sigma in N/(mm/s), stiffness in mN/um, a plant's force gain."""
+    from gmsfric.glitch.cli import _frictions_from, _plant_from
+    from gmsfric.model_io import save_model
+
+    sf = tmp_path / "static.json"
+    sf.write_text(json.dumps({"model": "static_map", "parameters": {n: {"value": v} for n, v in dict(fc=0.18, fs=0.21, vs=0.45, sigma=6.98e-3, delta=1.0).items()},
+                              "units": {"fc": "N", "fs": "N", "vs": "mm/s", "sigma": "N/(mm/s)", "delta": "1"}}))
+    bf = tmp_path / "blocks.json"
+    bf.write_text(json.dumps({"model": "presliding", "parameters": {"k1": {"value": 3200.0}, "k2": {"value": 8.9}, "w1": {"value": 33.0}, "w2": {"value": 57.0}},
+                              "units": {"k1": "mN/um", "k2": "mN/um", "w1": "mN", "w2": "mN"}}))
+    static, gms = _frictions_from([str(sf), str(bf)])
+    assert static.sigma == pytest.approx(6.98) and static.stribeck.vs == pytest.approx(4.5e-4)
+    assert gms.k == pytest.approx((3.2e6, 8.9e3)) and gms.alpha == pytest.approx((33 / 90, 57 / 90))
+    assert gms.stribeck == static.stribeck and gms.c == pytest.approx(1 / 4.5e-4)
+    pf = tmp_path / "plant.json"
+    save_model(presets.emps_plant(), pf)
+    assert _plant_from(str(pf)) == presets.emps_plant()  # 35.15 N/V, not 1
+    pf.write_text(json.dumps({"model": "plant", "parameters": {"a": 19.85, "b": 168.4, "c": 176.8, "delay": 1.29},
+                              "units": {"a": "mm/(V s^2)", "b": "1/s", "c": "1/s^2", "delay": "ms"}}))
+    with pytest.raises(InvalidInputError, match="no force gain"):
+        _plant_from(str(pf))

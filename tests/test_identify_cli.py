@@ -72,6 +72,17 @@ def test_plant_cli(tmp_path):
     assert js["model"] == "plant" and list(js["parameters"]) == ["a", "b", "c", "delay"]
     assert js["parameters"]["delay"]["value"] == pytest.approx(1.29e-3, rel=0.03)
     assert js["parameters"]["a"]["value"] == pytest.approx(plant.a, rel=0.01)
+    # without --force-gain the plant cannot be loaded (a default 1 N/V would scale friction silently)
+    from gmsfric import InvalidInputError, load_model
+
+    with pytest.raises(InvalidInputError, match="--force-gain"):
+        load_model(out)
+    assert main(["identify", "plant", f, "--time", "t", "--input", "u", "--output", "y", "--fmin", "1", "--fmax", "300", "--force-gain", "35.15",
+                 "--json", str(out), "-q"]) == 0
+    js = json.loads(out.read_text())
+    assert js["force_gain"] == 35.15 and js["units"]["force_gain"] == "N/V" and list(js["parameters"]) == ["a", "b", "c", "delay"]
+    loaded = load_model(out)
+    assert loaded.force_gain == 35.15 and loaded.a == pytest.approx(plant.a, rel=0.01)
 
 
 @pytest.mark.parametrize(
@@ -93,7 +104,7 @@ def test_too_few_plateaus_cli(tmp_path, capsys):
     t = np.arange(3000) * 1e-3
     x = np.minimum(t, 1.5) * 1e-3
     f = _csv(tmp_path / "one.csv", {"t": t, "x": x, "F": np.ones_like(t)})
-    assert main(["identify", "static-map", f, "--time", "t", "--position", "x", "--force", "F", "--quiet"]) == 2
+    assert main(["identify", "static-map", f, "--time", "t", "--position", "x", "--force", "F", "--quiet"]) == 1  # a fit that failed
     assert "too few constant-velocity plateaus" in capsys.readouterr().err
 
 
@@ -124,3 +135,10 @@ def test_paper_replay_quick():
     assert "Table 3" in rep.report()
     figs = rep.figures()
     assert {"fig5_static_map", "fig7_virgin_curve", "fig10_combined_static", "fig13_revised_gms"} <= set(figs)
+    # the JSON embeds the identified models (SI), readable by load_model
+    from gmsfric.model_io import model_from_dict
+
+    models = model_from_dict(rep.to_dict())
+    assert set(models) == {"static_map", "gms", "plant", "revised_plant_static", "revised_plant_gms"}
+    assert isinstance(models["gms"], GMS) and models["gms"] == rep.presliding.model_object
+    assert models["plant"].force_gain == presets.paper_plant().force_gain

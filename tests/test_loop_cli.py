@@ -7,18 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from gmsfric.loop.cli import main as loop_main
-from gmsfric.loop.cli import register
+from gmsfric.cli import main
 from gmsfric.loop.rigs import Rig, simulate_rig
-
-
-def _parse(argv):
-    import argparse
-
-    p = argparse.ArgumentParser(prog="gmsfric")
-    sub = p.add_subparsers(dest="command")
-    register(sub)
-    return p.parse_args(["loop", *argv])
 
 
 @pytest.fixture(scope="module")
@@ -34,9 +24,8 @@ def rig_csv(tmp_path_factory):
 def test_cli_json_contract_and_figures(rig_csv, tmp_path, capsys):
     path, gain = rig_csv
     out, figs = tmp_path / "r.json", tmp_path / "figs"
-    args = _parse([str(path), "--time", "t_ms", "--time-unit", "ms", "--position", "x_mm", "--position-unit", "mm",
-                   "--command", "u", "--gain", str(gain), "--json", str(out), "--plot", str(figs), "--quiet"])
-    assert loop_main(args) == 0
+    assert main(["loop", str(path), "--time", "t_ms", "--time-unit", "ms", "--position", "x_mm", "--position-unit", "mm",
+                 "--command", "u", "--gain", str(gain), "--json", str(out), "--plot", str(figs), "--quiet"]) == 0
     d = json.loads(out.read_text())
     for key in ("model", "estimation_error_pct", "validation_error_pct"):
         assert key in d["baseline"]
@@ -46,6 +35,10 @@ def test_cli_json_contract_and_figures(rig_csv, tmp_path, capsys):
     assert acc[0]["evidence"]["residual_test"]["variable"] == "position"
     assert "held-out" in d["validation"]
     assert (figs / "steps.png").exists() and (figs / "residual_baseline_estimation_position.png").exists()
+    fv = d["final"]["parameters"]["Fv"]
+    assert fv["stderr"] == fv["std"] > 0 and fv["unit"] == "N s/m" and d["final"]["parameters"]["M"]["unit"] == "kg"
+    assert d["kind"] == "loop" and d["provenance"]["columns"]["position"] == "x_mm" and d["provenance"]["units"]["time"] == "ms"
+    assert d["provenance"]["input_files"][0]["path"] == str(path) and len(d["provenance"]["input_files"][0]["sha256"]) == 64
     assert "before -> after" in capsys.readouterr().out
 
 
@@ -58,8 +51,6 @@ def test_cli_json_contract_and_figures(rig_csv, tmp_path, capsys):
     ],
 )
 def test_cli_errors_name_the_problem(rig_csv, argv, message, capsys):
-    from gmsfric.cli import main
-
     path, _ = rig_csv
     assert main(["loop", str(path), *argv, "--quiet"]) == 2
     assert message in capsys.readouterr().err

@@ -8,6 +8,7 @@ from scipy.io import savemat
 
 from gmsfric.errors import DataError
 from gmsfric.loop import load_axis_data
+from gmsfric.units import UnitError
 
 
 def _csv(path, cols: dict[str, np.ndarray]) -> str:
@@ -96,5 +97,5 @@ def test_too_few_samples(tmp_path):
 def test_unknown_unit(tmp_path):
     t, q, f = _run()
     p = _csv(tmp_path / "run.csv", {"t": t, "q": q, "F": f})
-    with pytest.raises(DataError, match="unknown position unit"):
+    with pytest.raises(UnitError, match="`position_unit`.*unknown unit 'furlong'"):
         load_axis_data(p, time="t", position="q", force="F", position_unit="furlong")

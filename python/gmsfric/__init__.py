@@ -10,10 +10,11 @@ from ._gmsfric import __version__
 from .axis import AxisModel, AxisUnits, Compliance, Covariance, Drift, Effects, Heating, PositionSeries
 from .errors import DataError, GmsfricError, IdentificationError, InvalidInputError, ResourceError, SimulationError
 from .models import GMS, LuGre, MaxwellSlip, StaticFriction, Stribeck, simulate_friction
+from .model_io import load_model, save_model
 from .system import PID, PIDDOB, Cascade, ClosedLoopResult, Plant, RunOptions, simulate_closed_loop
 
 # Subpackages load on first use (they pull in scipy): ``gmsfric.identify.fit_static_map(...)``.
-_SUBMODULES = ("identify", "loop", "glitch", "batch", "presets", "io", "plotting", "demo")
+_SUBMODULES = ("identify", "loop", "glitch", "batch", "presets", "io", "plotting", "demo", "units", "results", "model_io", "curves")
 
 
 def __getattr__(name: str) -> object:
@@ -46,6 +47,8 @@ __all__ = [
     "Heating",
     "Compliance",
     "Covariance",
+    "save_model",
+    "load_model",
     "GmsfricError",
     "ResourceError",
     "InvalidInputError",

@@ -88,3 +88,43 @@ def non_negative(name: str, value: float) -> float:
     if v < 0:
         raise InvalidInputError(f"`{name}` must be >= 0, got {v}")
     return v
+
+
+#: Default ceiling of one call's memory (bytes): the environment variable GMSFRIC_MAX_BYTES overrides it.
+DEFAULT_MAX_BYTES = 4 * 1024**3
+
+
+def max_bytes() -> float:
+    """The largest memory (bytes) one call may ask for: ``GMSFRIC_MAX_BYTES`` or 4 GiB."""
+    import os
+
+    text = os.environ.get("GMSFRIC_MAX_BYTES")
+    if text is None:
+        return float(DEFAULT_MAX_BYTES)
+    try:
+        value = float(text)
+    except ValueError:
+        raise InvalidInputError(f"GMSFRIC_MAX_BYTES must be a number of bytes, got {text!r}") from None
+    if not value > 0:
+        raise InvalidInputError(f"GMSFRIC_MAX_BYTES must be > 0, got {text!r}")
+    return value
+
+
+def format_bytes(n: float) -> str:
+    """``"728 TiB"``."""
+    if not np.isfinite(n):
+        return "an unbounded amount"
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"):
+        if abs(n) < 1024 or unit == "EiB":
+            return f"{n:.3g} {unit}"
+        n /= 1024
+    return f"{n:.3g} EiB"  # pragma: no cover
+
+
+def allocation(what: str, nbytes: float) -> None:
+    """Refuse, before allocating, a request for more memory than :func:`max_bytes`
+    (``InvalidInputError`` naming ``what`` and the size asked for)."""
+    limit = max_bytes()
+    if not np.isfinite(nbytes) or nbytes > limit:
+        raise InvalidInputError(f"{what} would need {format_bytes(nbytes)} of memory, more than the {format_bytes(limit)} allowed "
+                                "(set GMSFRIC_MAX_BYTES to raise the limit)")

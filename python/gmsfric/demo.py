@@ -22,7 +22,9 @@ from scipy.signal import butter, filtfilt
 from . import presets
 from .io import load_columns
 from .models import StaticFriction, Stribeck, simulate_friction
+from .cli import Run, declare_files
 from .plotting import plot_friction_map, plot_hysteresis
+from .results import write_figures
 
 
 def example_path(name: str) -> Path:
@@ -63,7 +65,7 @@ def run(out: Path, *, plots: bool = True) -> dict[str, Any]:
     if plots:
         fig = plot_friction_map([fitted], ["Coulomb + viscous + offset fit"], v_max=float(np.max(np.abs(pts["qd"]))), data=(pts["qd"], pts["friction"]))
         fig.axes[0].set_title("EMPS excerpt: friction force vs velocity")
-        fig.savefig(out / "friction_map.png", dpi=120)
+        write_figures({"friction_map": fig}, out, dpi=120)
 
     # 2. GMS pre-sliding: identify the blocks automatically from the virgin-curve test
     from .identify import fit_presliding
@@ -90,9 +92,8 @@ def run(out: Path, *, plots: bool = True) -> dict[str, Any]:
         fig = plot_hysteresis(cols["position"], cols["force"], virgin=(xv, gms.virgin_curve(xv)), title="Pre-sliding hysteresis: measured and identified GMS")
         fig.axes[0].plot(cols["position"] * 1e6, sim, "k-", lw=0.6, alpha=0.7, label="identified GMS")
         fig.axes[0].legend(fontsize="small")
-        fig.savefig(out / "gms_hysteresis.png", dpi=120)
-        for j, extra in enumerate(ident.plot()):
-            extra.savefig(out / f"gms_identification_{j + 1}.png", dpi=120)
+        write_figures({"gms_hysteresis": fig}, out, dpi=120)
+        write_figures({f"gms_identification_{j + 1}": f for j, f in enumerate(ident.plot().values())}, out, dpi=120)
 
     # 3. closed-loop glitches: the paper's Fig. 14 scenario (see docs/glitch.md)
     from .glitch import plot_tracking_errors, run_sinusoid
@@ -110,19 +111,21 @@ def run(out: Path, *, plots: bool = True) -> dict[str, Any]:
     for name, values in glitch.items():
         print(f"   {labels.get(name, name):>36}: peak glitch {float(values['peak_error_m']) * 1e6:6.3f} µm")  # type: ignore[arg-type]
     if plots:
-        plot_tracking_errors(scen).savefig(out / "closed_loop_glitches.png", dpi=120)
+        write_figures({"closed_loop_glitches": plot_tracking_errors(scen)}, out, dpi=120)
     if plots:
         print(f"Figures saved in {out.resolve()}/")
     return summary
 
 
-def _cmd(args: argparse.Namespace) -> int:
+def _cmd(args: argparse.Namespace, run_: Run) -> int:
     run(Path(args.out), plots=not args.no_plots)
     return 0
 
 
 def register(sub: Any) -> None:
+    """Add the ``demo`` command."""
     p = sub.add_parser("demo", help="run the tour on the built-in example data and save figures")
     p.add_argument("--out", default="gmsfric-demo", help="folder for the figures (default: ./gmsfric-demo)")
     p.add_argument("--no-plots", action="store_true", help="print the summary only")
+    declare_files(p, output_dirs=("out",))
     p.set_defaults(func=_cmd)

@@ -1,15 +1,21 @@
-"""Reading measurement files: CSV with a header row, or MATLAB .mat (v5, via scipy).
+"""Reading measurement files (CSV with a header row, or MATLAB .mat v5 via scipy) and writing
+outputs atomically.
 
 Columns are always named explicitly by the caller (``--time t --position qm``); nothing is
 guessed.  Problems raise :class:`~gmsfric.errors.DataError` naming the file and the column.
+Every output file is written to a temporary file in its directory and renamed over the target
+(:func:`write_text_atomic`, :func:`atomic_path`), so a crash or Ctrl-C never leaves half a file.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import os
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
+from typing import Iterator, Mapping
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,15 +59,62 @@ class Table:
         return len(next(iter(self.columns.values()))) if self.columns else 0
 
 
-def _read_csv(path: Path) -> Table:
-    with path.open(newline="") as fh:
-        sample = fh.read(4096)
-        fh.seek(0)
+#: Formats read as binary; everything else must be UTF-8 text.
+BINARY_SUFFIXES = (".mat",)
+
+
+def check_input_file(path: str | Path, *, role: str = "file") -> Path:
+    """Check that ``path`` is a readable regular file with content, and, unless it is a
+    ``.mat`` file, UTF-8 text (not UTF-16, not binary).
+
+    Raises
+    ------
+    DataError
+        Naming the file and what is wrong with it.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise DataError(f"{p}: no such file")
+    if p.is_dir():
+        raise DataError(f"{p}: is a directory, not a {role}")
+    if not p.is_file():
+        raise DataError(f"{p}: not a regular file")
+    if not os.access(p, os.R_OK):
+        raise DataError(f"{p}: permission denied")
+    if p.stat().st_size == 0:
+        raise DataError(f"{p}: file is empty")
+    if p.suffix.lower() not in BINARY_SUFFIXES:
+        with p.open("rb") as fh:
+            head = fh.read(8192)
+        if head[:2] in (b"\xff\xfe", b"\xfe\xff"):
+            raise DataError(f"{p}: UTF-16 text; save it as UTF-8")
+        if b"\x00" in head:
+            # UTF-16 without a byte-order mark: every other byte of ASCII text is zero
+            if max(head[0::2].count(0), head[1::2].count(0)) > len(head) // 3:
+                raise DataError(f"{p}: looks like UTF-16 text; save it as UTF-8")
+            raise DataError(f"{p}: binary file, expected text (CSV with a header row, JSON) or a .mat file")
         try:
-            dialect = csv.Sniffer().sniff(sample, delimiters=",;\t ")
-        except csv.Error:
-            dialect = csv.excel  # type: ignore[assignment]
-        rows = list(csv.reader(fh, dialect))
+            head.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            if exc.start < len(head) - 4:  # not just a character cut at the end of the sample
+                raise DataError(f"{p}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
+    return p
+
+
+def _read_csv(path: Path) -> Table:
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            sample = fh.read(4096)
+            fh.seek(0)
+            try:
+                dialect = csv.Sniffer().sniff(sample, delimiters=",;\t ")
+            except csv.Error:
+                dialect = csv.excel  # type: ignore[assignment]
+            rows = list(csv.reader(fh, dialect))
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
+    except csv.Error as exc:
+        raise DataError(f"{path}: cannot read as CSV: {exc}") from None
     rows = [r for r in rows if any(cell.strip() for cell in r)]
     if not rows:
         raise DataError(f"{path}: file is empty")
@@ -101,11 +154,7 @@ def _read_mat(path: Path) -> Table:
 
 def read_table(path: str | Path) -> Table:
     """Read a CSV (header row) or .mat file into a :class:`Table`."""
-    p = Path(path)
-    if not p.exists():
-        raise DataError(f"{p}: no such file")
-    if p.stat().st_size == 0:
-        raise DataError(f"{p}: file is empty")
+    p = check_input_file(path)
     return _read_mat(p) if p.suffix.lower() == ".mat" else _read_csv(p)
 
 
@@ -133,3 +182,49 @@ def load_columns(path: str | Path | Table, mapping: Mapping[str, str], *, min_sa
             i = int(np.flatnonzero(d <= 0)[0]) + 1
             raise DataError(f"{table.source}: time column {mapping['time']!r} is not strictly increasing at row {i}")
     return out
+
+
+# ------------------------------------------------------------------------------------------
+# atomic outputs
+
+
+def _new_file_mode(target: Path) -> int:
+    if target.exists():
+        return target.stat().st_mode & 0o777
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """A temporary path in the directory of ``path``; on success it is renamed over ``path``
+    (``os.replace``), on error removed.  The target is untouched until the rename::
+
+        with atomic_path("fig.png") as tmp:
+            fig.savefig(tmp, format="png")
+    """
+    target = Path(path)
+    if target.is_dir():
+        raise IsADirectoryError(21, "is a directory", str(target))
+    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent if str(target.parent) else ".")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        os.chmod(tmp, _new_file_mode(target))
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically; returns the path."""
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+    return Path(path)

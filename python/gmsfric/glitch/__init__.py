@@ -16,6 +16,7 @@ from .circle import QUADRANTS, CircleResult, run_circle
 from .compensation import DOB_CUTOFF_HZ, EXTRA_STRATEGIES, STRATEGIES, CompensationResult, compensation_sweep, friction_feedforward, run_compensation
 from .metrics import GlitchEvent, GlitchReport, find_reversals, glitch_metrics
 from .plots import plot_circle_polar, plot_compensation, plot_tracking_errors
+from .results import GlitchStudy
 from .scenario import (
     DEFAULT_GAINS,
     PAPER_STATIC_V_LINEAR,
@@ -32,6 +33,7 @@ from .scenario import (
 __all__ = [
     "run_sinusoid",
     "ScenarioResult",
+    "GlitchStudy",
     "scenario_controller",
     "sinusoid_reference",
     "table3_plant",

@@ -10,64 +10,18 @@ frictionless radial error in the window after it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
-from numpy.typing import NDArray
 
 from .. import presets
 from .._validate import non_negative, positive
 from ..models import GMS, FrictionModel, StaticFriction
-from ..system import PID, Cascade, ClosedLoopResult, Plant
+from ..system import PID, Cascade, Plant
 from .compensation import _simulate_many
+from .results import CircleResult
 from .scenario import MODELS, PAPER_STATIC_V_LINEAR, STICTION, paper_static_map, scenario_controller
 
 QUADRANTS = (0, 90, 180, 270)
-
-
-@dataclass(frozen=True)
-class CircleResult:
-    """Circle runs keyed by model (``"none"``, ``"static"``, ``"gms"`` and, unless disabled,
-    ``"static_stiction"``).
-
-    Attributes
-    ----------
-    t, theta : ndarray
-        Time (s) and reference angle (rad).
-    radius : float
-        Circle radius (m).
-    x, y : dict of str -> ClosedLoopResult
-        Per-axis runs.
-    radial_error : dict of str -> ndarray
-        ``sqrt(x^2 + y^2) - R`` (m).
-    quadrant_glitch : dict of str -> dict of int -> float
-        Per model, the glitch height (m) at 0, 90, 180, 270 deg against the frictionless radial
-        error (signed: negative = the path dips inside the circle).
-    """
-
-    t: NDArray[np.float64]
-    theta: NDArray[np.float64]
-    radius: float
-    x: Mapping[str, ClosedLoopResult]
-    y: Mapping[str, ClosedLoopResult]
-    radial_error: Mapping[str, NDArray[np.float64]]
-    quadrant_glitch: Mapping[str, Mapping[int, float]]
-
-    def summary(self) -> dict[str, object]:
-        """JSON-able ``{"radius_m", model: {"radial_error_min_m", "radial_error_max_m",
-        "peak_glitch_m", "quadrant_glitch_m": {"0": ..., "90": ..., ...}}}``."""
-        out: dict[str, object] = {"radius_m": self.radius}
-        sel = (self.theta >= 0) & (self.theta <= 2 * np.pi)
-        for m, er in self.radial_error.items():
-            q = self.quadrant_glitch[m]
-            out[m] = {
-                "radial_error_min_m": float(er[sel].min()),
-                "radial_error_max_m": float(er[sel].max()),
-                "peak_glitch_m": float(max(abs(v) for v in q.values())),
-                "quadrant_glitch_m": {str(k): float(v) for k, v in q.items()},
-            }
-        return out
 
 
 def run_circle(

@@ -19,7 +19,6 @@ PID (:class:`gmsfric.system.PIDDOB`, nominal plant = the plant, Q-filter cutoff 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
@@ -30,7 +29,8 @@ from .._validate import as_array, finite, same_length
 from ..errors import InvalidInputError
 from ..models import GMS, FrictionModel, StaticFriction, simulate_friction
 from ..system import PID, PIDDOB, Cascade, ClosedLoopResult, Controller, Plant, simulate_closed_loop
-from .metrics import GlitchReport, glitch_metrics
+from .metrics import glitch_metrics
+from .results import CompensationResult
 from .scenario import DEFAULT_GAINS, PAPER_STATIC_V_LINEAR, paper_static_map, scenario_controller, sinusoid_reference
 
 #: The issue's contract strategies (always run).
@@ -92,42 +92,6 @@ def friction_feedforward(
     else:
         force = simulate_friction(model, t_arr, rs)
     return gain * force / fg
-
-
-@dataclass(frozen=True)
-class CompensationResult:
-    """Runs of the true (GMS) axis with each compensation strategy.
-
-    Attributes
-    ----------
-    runs : dict of str -> ClosedLoopResult
-    feedforward : dict of str -> ndarray or None
-    baseline : ndarray
-        Frictionless error of the same loop.
-    metrics : dict of str -> GlitchReport
-    force_gain : float
-        The plant's force per drive unit (N/V).
-    """
-
-    runs: Mapping[str, ClosedLoopResult]
-    feedforward: Mapping[str, NDArray[np.float64] | None]
-    baseline: NDArray[np.float64]
-    metrics: Mapping[str, GlitchReport]
-    force_gain: float = 1.0
-
-    def reduction(self, strategy: str) -> float:
-        """Cut of the peak glitch height by ``strategy`` relative to no compensation (%)."""
-        h0 = self.metrics["none"].height
-        return float("nan") if h0 == 0 else 100.0 * (1.0 - self.metrics[strategy].height / h0)
-
-    def summary(self) -> dict[str, dict[str, Any]]:
-        """``{strategy: {"peak_error_m", "raw_peak_error_m", ..., "reduction_percent"}}``."""
-        out: dict[str, dict[str, Any]] = {}
-        for k, m in self.metrics.items():
-            d = m.to_dict()
-            d["reduction_percent"] = 0.0 if k == "none" else self.reduction(k)
-            out[k] = d
-        return out
 
 
 def _simulate_many(jobs: Sequence[Mapping[str, Any]]) -> list[ClosedLoopResult]:

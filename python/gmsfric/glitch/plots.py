@@ -11,9 +11,7 @@ from ..plotting import new_figure
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-    from .circle import CircleResult
-    from .compensation import CompensationResult
-    from .scenario import ScenarioResult
+    from .results import CircleResult, CompensationResult, ScenarioResult
 
 _LABELS = {"none": "without friction", "static": "static map (Simulink linear region)", "gms": "GMS",
            "static_stiction": "static map, true stiction",

@@ -23,7 +23,6 @@ Choices (see ``docs/glitch.md``):
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
@@ -34,7 +33,8 @@ from .._validate import finite, non_negative, positive
 from ..errors import InvalidInputError
 from ..models import GMS, FrictionModel, StaticFriction
 from ..system import PID, Cascade, ClosedLoopResult, Plant, simulate_closed_loop
-from .metrics import GlitchReport, glitch_metrics
+from .metrics import glitch_metrics
+from .results import ScenarioResult
 
 #: Table 3 as read in docs/glitch.md: (A' mm/(V s^2), B' 1/s, C' 1/s^2) per friction model.
 #: Table 3's revised (A', B', C') per model, as read in :class:`gmsfric.presets.Table3Reading`.
@@ -117,28 +117,6 @@ def sinusoid_reference(amplitude: float, frequency: float, dt: float, periods: f
     t = np.asarray(np.arange(n) * dt, dtype=np.float64)
     w = 2.0 * np.pi * frequency
     return t, np.asarray(amplitude * np.sin(w * t + phase), dtype=np.float64), float(amplitude * w * np.cos(phase))
-
-
-@dataclass(frozen=True)
-class ScenarioResult:
-    """Runs of one scenario keyed by model name, with their glitch metrics.
-
-    Attributes
-    ----------
-    runs : dict of str -> ClosedLoopResult
-    baselines : dict of str -> ndarray
-        Frictionless error of the plant each run used (the linear error).
-    metrics : dict of str -> GlitchReport
-    """
-
-    runs: Mapping[str, ClosedLoopResult]
-    baselines: Mapping[str, NDArray[np.float64]]
-    metrics: Mapping[str, GlitchReport]
-    params: Mapping[str, object] = field(default_factory=dict)
-
-    def summary(self) -> dict[str, dict[str, object]]:
-        """``{model: {"peak_error_m" (glitch height), "raw_peak_error_m", "duration_s", "area_m_s", "reversals"}}``."""
-        return {k: r.to_dict() for k, r in self.metrics.items()}
 
 
 def run_sinusoid(

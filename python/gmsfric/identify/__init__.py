@@ -9,13 +9,14 @@ virtual rig that replays the paper's experiments on the Rust simulator.  See
 from .frf import FRF, estimate_frf, fit_plant, plant_response, plant_to_control
 from .paper import ReplaySettings, Table3Reading, replay_paper
 from .presliding import build_virgin_curve, fit_presliding
-from .results import IdentificationResult
+from .results import IdentificationResult, Replay
 from .revision import combined_frf, revise_plant
 from .rig import VirtualRig, band_limited_noise
 from .static_map import find_plateaus, fit_static_map, fit_static_map_from_run, static_map_curve
 
 __all__ = [
     "IdentificationResult",
+    "Replay",
     "fit_static_map",
     "fit_static_map_from_run",
     "find_plateaus",

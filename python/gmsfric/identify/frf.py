@@ -22,13 +22,40 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 from scipy.optimize import least_squares
 
+from .. import units as _units
 from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
 from ..system import Plant
-from .results import IdentificationResult, covariance_from_jacobian
+from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
 
 PLANT_NAMES = ("a", "b", "c", "delay")
 COHERENCE_CAP = 0.9995
+
+#: Quantity of each plant parameter (for :mod:`gmsfric.units`).
+PLANT_QUANTITIES = {"a": "plant_gain", "b": "rate", "c": "rate_squared", "delay": "time", "force_gain": "force_gain"}
+
+
+def plant_units(time_unit: str = "s", input_unit: str = "V", output_unit: str = "m", force_gain_unit: str | None = None) -> tuple[dict[str, str], str]:
+    """Units of ``a b c delay`` (and ``force_gain``) for data in the given units, after checking
+    them; returns the units and the force-gain unit (default N, or N m on a rotary axis, per
+    input unit)."""
+    _units.check(time_unit, "time", name="time_unit")
+    _units.check(input_unit, "drive", name="input_unit")
+    rotary = _units.is_rotary(output_unit, "position", name="output_unit")
+    if force_gain_unit is None:
+        force_gain_unit = _units.ratio("N m" if rotary else "N", input_unit)
+    fg = _units.check(force_gain_unit, "force_gain", rotary=rotary, name="force_gain_unit")
+    if _units.drive_base(input_unit, name="input_unit") != ("V" if fg.dim[5] else "A"):
+        raise _units.UnitError(f"`force_gain_unit` {force_gain_unit!r} is per a different drive input than `input_unit` {input_unit!r}")
+    units = {"a": f"{output_unit}/({input_unit} {time_unit}^2)", "b": f"1/{time_unit}", "c": f"1/{time_unit}^2", "delay": time_unit}
+    return units, force_gain_unit
+
+
+def plant_si(values: dict[str, float], units: dict[str, str]) -> Plant:
+    """The :class:`~gmsfric.system.Plant` of parameters given in ``units``, in SI (``force_gain``
+    must be among them)."""
+    si = {k: _units.to_si(values[k], units[k], q, name=f"units[{k!r}]") for k, q in PLANT_QUANTITIES.items()}
+    return Plant(si["a"], si["b"], si["c"], si["delay"], si["force_gain"])
 
 
 @dataclass
@@ -186,11 +213,12 @@ def fit_plant(
     max_delay: float | None = None,
     fit_delay: bool = True,
     delay: float = 0.0,
-    force_gain: float = 1.0,
+    force_gain: float | None = None,
     zoh: bool = True,
     time_unit: str = "s",
     input_unit: str = "V",
     output_unit: str = "m",
+    force_gain_unit: str | None = None,
 ) -> IdentificationResult:
     """Fit ``a / (s^2 + b s + c) exp(-s delay)`` to an FRF (coherence-weighted NLS).
 
@@ -206,21 +234,36 @@ def fit_plant(
         Upper end of the delay search; default one period of the highest fitted frequency.
     fit_delay : bool
         Fit the delay (else hold it at ``delay``).
-    force_gain : float
-        Carried into the returned :class:`~gmsfric.system.Plant` (not identifiable from an FRF).
+    force_gain : float, optional
+        Force per drive-input unit (the motor constant), in ``force_gain_unit``: not identifiable
+        from an FRF, carried into the returned :class:`~gmsfric.system.Plant` and the JSON.
+        Without it the ``model_object`` carries 1 (so friction would enter unscaled) and the
+        JSON's model document states no force gain, so it cannot be loaded as a Plant.
     zoh : bool
         Model the zero-order hold of the sampled drive (``(1 - e^{-sT})/(sT)``, about ``T/2`` of
         extra delay), so ``delay`` is the plant's own; ``False`` lumps the hold into ``delay``
         (as a plain continuous fit of the paper's kind would).
     time_unit, input_unit, output_unit : str
-        Units of the data, for the reported units.
+        Units of the data (any :mod:`gmsfric.units` reads); the parameters are reported in
+        them, ``model_object`` is converted to SI.
+    force_gain_unit : str, optional
+        Unit of ``force_gain``; default ``N/<input_unit>`` (``N m/<input_unit>`` when the output
+        is an angle).
 
     Returns
     -------
     IdentificationResult
-        ``model="plant"``, parameters ``a b c delay``; ``model_object`` is a ``Plant`` (when the
-        estimates are admissible) and ``info["bode"]`` the fit band.
+        ``model="plant"``, parameters ``a b c delay``; ``model_object`` is a ``Plant`` in SI (when
+        the estimates are admissible).
+
+    Raises
+    ------
+    UnitError
+        A unit unknown or not of its quantity (before any work).
     """
+    units, force_gain_unit = plant_units(time_unit, input_unit, output_unit, force_gain_unit)
+    if force_gain is not None:
+        force_gain = positive("force_gain", force_gain)
     sel = frf.select(fmin, fmax)
     m = sel.coherence >= min_coherence
     f, H, g = sel.f[m], sel.H[m], sel.coherence[m]
@@ -277,15 +320,22 @@ def fit_plant(
         "c": (float(q[2]), float(se[2])),
         "delay": (tau, float(se[3]) if fit_delay else 0.0),
     }
-    units = {"a": f"{output_unit}/({input_unit} {time_unit}^2)", "b": f"1/{time_unit}", "c": f"1/{time_unit}^2", "delay": time_unit}
     dof = max(2 * f.size - 4, 1)
     info = {"zoh_dt": T, "n_bins": int(f.size), "band": [float(f.min()), float(f.max())], "chi2_per_dof": float(2 * best.cost / dof), "n_averages": frf.n_averages}
+    info["force_gain"] = force_gain
+    if force_gain is not None:
+        units["force_gain"] = force_gain_unit
     plant = None
     try:
-        plant = Plant(a, params["b"][0], params["c"][0], tau, force_gain)
+        plant = plant_si({"a": a, "b": params["b"][0], "c": params["c"][0], "delay": tau, "force_gain": 1.0 if force_gain is None else force_gain},
+                         {**units, "force_gain": "N/V" if force_gain is None else force_gain_unit})
     except InvalidInputError:  # pragma: no cover
         pass
-    return IdentificationResult("plant", params, units, info, data={"frf": frf, "fit_f": f}, plotter=_plot_plant, model_object=plant)
+    # covariance of (a, b, c, delay) from that of (log a, b, c[, delay]); a held delay has none
+    jac_p = np.eye(4)[:, : cov.shape[0]] * np.array([a, 1.0, 1.0, 1.0])[:, None]
+    cov_p = transform_covariance(cov, jac_p)
+    return IdentificationResult("plant", params, units, info, data={"frf": frf, "fit_f": f, "input_unit": input_unit, "output_unit": output_unit},
+                                model_object=plant, covariance=(list(PLANT_NAMES), cov_p))
 
 
 def plant_to_control(result: IdentificationResult, pade_order: int | None = None) -> Any:
@@ -301,39 +351,3 @@ def plant_to_control(result: IdentificationResult, pade_order: int | None = None
     else:
         tf.delay = tau
     return tf
-
-
-def bode_figure(curves: list[tuple[str, NDArray[np.float64], NDArray[np.complex128], dict]], coherence: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None, title: str = "") -> Any:
-    """Bode magnitude/phase (and coherence) of several responses ``(label, f, H, style)``."""
-    from ..plotting import new_figure
-
-    n = 3 if coherence is not None else 2
-    fig, axes = new_figure(n, 1, figsize=(7.0, 7.5 if n == 3 else 6.0), sharex=True)
-    for label, f, H, style in curves:
-        axes[0].loglog(f, np.abs(H), label=label, **style)
-        axes[1].semilogx(f, np.degrees(np.unwrap(np.angle(H))), label=label, **style)
-    axes[0].set_ylabel("magnitude")
-    axes[1].set_ylabel("phase [deg]")
-    if coherence is not None:
-        axes[2].semilogx(coherence[0], coherence[1], "k-", lw=0.8)
-        axes[2].set_ylabel("coherence")
-        axes[2].set_ylim(0, 1.05)
-    axes[-1].set_xlabel("frequency [Hz]")
-    axes[0].legend(fontsize="small")
-    axes[0].set_title(title)
-    for ax in axes:
-        ax.grid(True, which="both", alpha=0.3)
-    return fig
-
-
-def _plot_plant(res: IdentificationResult) -> list:
-    frf: FRF = res.data["frf"].select(0.0, float(res.data["fit_f"].max()))
-    p = [res.value(k) for k in PLANT_NAMES]
-    T = float(res.info.get("zoh_dt", 0.0))
-    fig = bode_figure(
-        [("measured H1", frf.f, frf.H, {"color": "0.5", "lw": 0.8}), ("eq. 1 fit", frf.f, plant_response(frf.f, *p, T), {"color": "C0", "lw": 1.5})],
-        (frf.f, frf.coherence),
-        title="FRF and plant fit (cf. paper Fig. 3)",
-    )
-    fig.set_label("bode")
-    return [fig]

@@ -11,23 +11,19 @@ read; see ``docs/identification.md``.
 
 from __future__ import annotations
 
-import argparse
-import json
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .. import presets
 from ..models import StaticFriction, Stribeck
-from ..presets import PaperReading
+from ..presets import PaperReading, Table3Reading
 from ..system import Plant
 from .frf import estimate_frf, fit_plant
 from .presliding import fit_presliding
-from .results import IdentificationResult, _jsonable
+from .results import Replay
 from .revision import revise_plant
-from ..presets import Table3Reading
 from .rig import VirtualRig
 from .static_map import fit_static_map_from_run
 
@@ -65,60 +61,6 @@ class ReplaySettings:
     frf_band: tuple[float, float] = (0.5, 300.0)
     frf_fit_band: tuple[float, float] = (1.0, 300.0)
     seed: int = 0
-
-
-@dataclass
-class Replay:
-    """Results of :func:`replay_paper`."""
-
-    settings: ReplaySettings
-    truth: dict[str, Any]
-    static_map: IdentificationResult
-    presliding: IdentificationResult
-    plant: IdentificationResult
-    revised_static: IdentificationResult
-    revised_gms: IdentificationResult
-    tables: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
-
-    def figures(self) -> dict[str, Any]:
-        """The paper's figures: Fig. 3, 5, 6, 7, 10, 11, 12, 13 equivalents."""
-        figs = {}
-        sm = self.static_map.plot()
-        figs["fig5_static_map"] = sm[0]
-        if len(sm) > 1:
-            figs["fig4_plateaus"] = sm[1]
-        ps = self.presliding.plot()
-        figs["fig7_virgin_curve"] = ps[0]
-        if len(ps) > 1:
-            figs["fig6_hysteresis"] = ps[1]
-        figs["fig3_frf"] = self.plant.plot()[0]
-        c, r = self.revised_static.plot()
-        figs["fig10_combined_static"], figs["fig11_revised_static"] = c, r
-        c, r = self.revised_gms.plot()
-        figs["fig12_combined_gms"], figs["fig13_revised_gms"] = c, r
-        return figs
-
-    def report(self) -> str:
-        lines = []
-        for title, rows in self.tables.items():
-            lines.append(title)
-            head = ("parameter", "unit", "printed", "true", "identified", "stderr", "z")
-            body = [
-                (r["name"], r["unit"], _fmt(r["printed"]), _fmt(r["true"]), _fmt(r["value"]), _fmt(r["stderr"], 2), "-" if r["z"] is None else f"{r['z']:+.1f}")
-                for r in rows
-            ]
-            widths = [max(len(x[i]) for x in [head] + body) for i in range(len(head))]
-            lines.append("  " + "  ".join(h.ljust(w) if i < 2 else h.rjust(w) for i, (h, w) in enumerate(zip(head, widths))))
-            for b in body:
-                lines.append("  " + "  ".join(x.ljust(w) if i < 2 else x.rjust(w) for i, (x, w) in enumerate(zip(b, widths))))
-            lines.append("")
-        return "\n".join(lines)
-
-
-def _fmt(v: Any, digits: int = 5) -> str:
-    if v is None or (isinstance(v, float) and not np.isfinite(v)):
-        return "-"
-    return f"{v:.{digits}g}"
 
 
 def _row(name: str, unit: str, printed: float | None, true: float, value: float, stderr: float) -> dict[str, Any]:
@@ -210,33 +152,3 @@ def replay_paper(settings: ReplaySettings = ReplaySettings(), *, progress: bool 
             _row("C'", "1/s^2", printed[2], plant.c, *rv.parameters["c"]),
         ]
     return Replay(s, truth, sm, ps, pf, rv_s, rv_g, tables)
-
-
-def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = subparsers.add_parser("paper", help="replay the paper's identification on the virtual rig (true vs identified)", description=__doc__)
-    p.add_argument("--plot", "--out", dest="out", metavar="DIR", help="save the figures (Figs. 3-7, 10-13 equivalents) in DIR")
-    p.add_argument("--json", metavar="OUT", help="write the tables as JSON")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    p.set_defaults(func=_run)
-
-
-def _run(args: argparse.Namespace) -> int:
-    rep = replay_paper(ReplaySettings(seed=args.seed), progress=not args.quiet)
-    print("gmsfric paper: the paper's experiments replayed on the virtual rig (seed %d)" % args.seed)
-    print("printed = the paper's number, true = the rig (PaperReading defaults), z = (identified - true) / stderr\n")
-    print(rep.report())
-    print(f"GMS blocks: {rep.presliding.info['n_blocks']} (the paper's choice; ReplaySettings(n_blocks=None) lets BIC choose)")
-    print("Eq. 1 and the static-model Table 3 are biased on purpose: the rig's friction is GMS, whose pre-sliding")
-    print("stiffness and damping a linear fit (or a static map) cannot represent; the GMS revision recovers the mechanics.")
-    print(f"static-map plateaus used: {rep.static_map.info.get('n_plateaus')} (rejected {rep.static_map.info.get('n_rejected')})")
-    if args.json:
-        Path(args.json).write_text(json.dumps(_jsonable({"tables": rep.tables, "truth": rep.truth}), indent=2) + "\n")
-        print(f"wrote {args.json}")
-    if args.out:
-        d = Path(args.out)
-        d.mkdir(parents=True, exist_ok=True)
-        for name, fig in rep.figures().items():
-            fig.savefig(d / f"{name}.png", dpi=110)
-        print(f"wrote figures to {d}")
-    return 0

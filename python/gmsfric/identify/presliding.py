@@ -30,11 +30,13 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
+from .. import curves
+from .. import units as _units
 from .._progress import Progress
 from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
 from ..models import GMS, Stribeck, simulate_friction
-from .results import IdentificationResult, autocorrelation_inflation, covariance_from_jacobian
+from .results import IdentificationResult, autocorrelation_inflation, covariance_from_jacobian, transform_covariance
 
 
 @dataclass
@@ -172,8 +174,9 @@ def build_virgin_curve(
 
 
 def virgin_model(u: NDArray[np.float64], k: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``sum_i k_i min(u, d_i)`` for ``u >= 0``."""
-    return (k[:, None] * np.minimum(u[None, :], d[:, None])).sum(axis=0)
+    """``sum_i k_i min(u, d_i)`` for ``u >= 0``: the virgin curve of blocks with knots ``d_i``
+    (:func:`gmsfric.curves.virgin_curve` with break forces ``k_i d_i``)."""
+    return curves.virgin_curve(u, k, k * d)
 
 
 def _segment_dp(x: NDArray[np.float64], y: NDArray[np.float64], w: NDArray[np.float64], n_seg: int, min_pts: int = 2) -> list[int]:
@@ -269,6 +272,28 @@ def _make_gms(k: NDArray[np.float64], w: NDArray[np.float64], c: float, stribeck
     return GMS.from_break_forces(k, w, c, stribeck=stribeck, sigma=sigma, slip_law=slip_law, scale="sum")  # type: ignore[arg-type]
 
 
+def presliding_units(position_unit: str, force_unit: str, time_unit: str = "s") -> tuple[bool, dict[str, float]]:
+    """Check the data units of a pre-sliding test; returns whether the axis is rotary and the
+    factors to SI of position, force and time."""
+    _units.check(time_unit, "time", name="time_unit")
+    rotary = _units.is_rotary(position_unit, "position", name="position_unit")
+    _units.check(force_unit, "force", rotary=rotary, name="force_unit")
+    kx = _units.factor(position_unit, "position", name="position_unit")
+    kf = _units.factor(force_unit, "force", name="force_unit")
+    kt = _units.factor(time_unit, "time", name="time_unit")
+    return rotary, {"position": kx, "force": kf, "time": kt}
+
+
+def _gms_si(k: NDArray[np.float64], w: NDArray[np.float64], c: float, stribeck: Stribeck | None, sigma: float, slip_law: str,
+            f: dict[str, float]) -> GMS:
+    """The identified GMS (built in the data's units) converted to SI: every parameter scaled by
+    its dimension, so the SI model simulates the same physics."""
+    kx, kf, kt = f["position"], f["force"], f["time"]
+    st = None if stribeck is None else Stribeck(stribeck.fc * kf, stribeck.fs * kf, stribeck.vs * kx / kt, stribeck.delta)
+    c_si = c * kf / kt if slip_law == "time" else c / kx
+    return _make_gms(k * (kf / kx), w * kf, c_si, st, sigma * kf * kt / kx, slip_law)
+
+
 def fit_presliding(
     t: ArrayLike,
     position: ArrayLike,
@@ -286,6 +311,7 @@ def fit_presliding(
     resolution: float | None = None,
     position_unit: str = "m",
     force_unit: str = "N",
+    time_unit: str = "s",
     progress: bool = True,
 ) -> IdentificationResult:
     """Identify the GMS blocks ``k_i`` (force/position) and ``w_i`` (force) from a virgin-curve
@@ -300,8 +326,9 @@ def fit_presliding(
     max_blocks : int
         Largest number of blocks tried by BIC.
     stribeck : Stribeck, optional
-        Shape of the sliding level for the hysteresis refinement (e.g. from the static-map fit);
-        it is rescaled so that ``s(0) = sum(w)`` (eq. 6).  Default: a constant level.
+        Shape of the sliding level for the hysteresis refinement (e.g. from the static-map fit),
+        in the data's units; it is rescaled so that ``s(0) = sum(w)`` (eq. 6).  Default: a
+        constant level.
     c : float, optional
         GMS attraction parameter for the refinement; default ``1 / vs`` of ``stribeck`` (the
         paper's statement) or a fast ``1e3 * sum(w) / (time unit)``.
@@ -320,15 +347,23 @@ def fit_presliding(
         Log-spaced bins of the virgin curve.
     resolution : float, optional
         Position resolution; estimated when not given.
-    position_unit, force_unit : str
-        Units of the data (the parameters are in the data's own units).
+    position_unit, force_unit, time_unit : str
+        Units of the data (any :mod:`gmsfric.units` reads; a rotary axis gives ``rad`` and
+        ``N m``).  The parameters are reported in them (``stribeck``, ``c`` and ``sigma`` are
+        taken in them too).
 
     Returns
     -------
     IdentificationResult
         ``model="presliding"``, parameters ``k1..kN`` and ``w1..wN``; ``model_object`` is the
-        refined :class:`~gmsfric.models.GMS` (SI only if the data are SI).
+        refined :class:`~gmsfric.models.GMS` converted to SI.
+
+    Raises
+    ------
+    UnitError
+        A unit unknown or not of its quantity (before any work).
     """
+    _, to_si = presliding_units(position_unit, force_unit, time_unit)
     t = as_array("time", t, min_len=10)
     x = as_array("position", position)
     F = as_array("force", force)
@@ -336,6 +371,8 @@ def fit_presliding(
     same_length("force", F, "time", t.size)
     if n_blocks is not None and (int(n_blocks) != n_blocks or n_blocks < 1):
         raise InvalidInputError(f"`n_blocks` must be a positive integer, got {n_blocks}")
+    if isinstance(max_blocks, bool) or not isinstance(max_blocks, (int, np.integer)) or max_blocks < 1:
+        raise InvalidInputError(f"`max_blocks` must be a positive integer, got {max_blocks!r}")
     vc = build_virgin_curve(t, x, F, n_bins=n_bins, resolution=resolution)
     n_pts = vc.u_bin.size + 1
     candidates = [int(n_blocks)] if n_blocks is not None else list(range(1, max_blocks + 1))
@@ -436,6 +473,11 @@ def fit_presliding(
         floor_k = kq * (sigma_x / (wq / kq)) / np.sqrt(n_rev)
         se_k = np.sqrt(se_k**2 + floor_k**2)
         order = np.argsort(wq / kq)
+        # covariance of (k, w) from that of (log k, log w), with the quantisation floor on k
+        cov_kw = transform_covariance(cov, np.diag(np.concatenate((kq, wq))))
+        cov_kw[np.arange(nb), np.arange(nb)] += floor_k**2
+        perm = np.concatenate((order, nb + order))
+        cov_kw = cov_kw[np.ix_(perm, perm)]
         kq, wq, se_k, se_w = kq[order], wq[order], se_k[order], se_w[order]
         info["rms_residual"] = float(np.sqrt(np.mean((r.fun / weight[mask]) ** 2)))
         info["refined"] = True
@@ -446,66 +488,23 @@ def fit_presliding(
         kq, wq = k, w
         se_k = k * slk
         se_w = w * np.sqrt(np.clip(slk**2 + sld**2 + 2 * cov_kd, 0, np.inf))
+        # covariance of (k, w = k d) from that of (log k, log d), in the order of the sorted blocks
+        k_u, w_u = np.exp(vr.x[:nb]), np.exp(vr.x[:nb] + vr.x[nb:])
+        jac_kw = np.block([[np.diag(k_u), np.zeros((nb, nb))], [np.diag(w_u), np.diag(w_u)]])
+        perm = np.concatenate((order, nb + order))
+        cov_kw = transform_covariance(cov_v, jac_kw)[np.ix_(perm, perm)]
         info["refined"] = False
     params = {}
     for i in range(nb):
         params[f"k{i + 1}"] = (float(kq[i]), float(se_k[i]))
     for i in range(nb):
         params[f"w{i + 1}"] = (float(wq[i]), float(se_w[i]))
-    units = {**{f"k{i + 1}": f"{force_unit}/{position_unit}" for i in range(nb)}, **{f"w{i + 1}": force_unit for i in range(nb)}}
+    units = {**{f"k{i + 1}": _units.ratio(force_unit, position_unit) for i in range(nb)}, **{f"w{i + 1}": force_unit for i in range(nb)}}
     info["knots"] = (wq / kq).tolist()
     info["break_force"] = float(wq.sum())
     info["c"] = c
     model = _make_gms(kq, wq, c, stribeck, sigma, slip_law)
-    return IdentificationResult("presliding", params, units, info, data={"t": t, "x": x, "F": F, "virgin": vc, "virgin_k": k, "virgin_d": d, "stribeck": stribeck, "sigma": sigma, "slip_law": slip_law}, plotter=_plot_presliding, model_object=model)
-
-
-def _plot_presliding(res: IdentificationResult) -> list:
-    from ..plotting import new_figure
-
-    vc: VirginCurve = res.data["virgin"]
-    nb = res.info["n_blocks"]
-    k = np.array([res.value(f"k{i + 1}") for i in range(nb)])
-    w = np.array([res.value(f"w{i + 1}") for i in range(nb)])
-    d = w / k
-    pu = res.units.get("w1", "")
-    xu = res.units.get("k1", "/").split("/")[-1]
-    fig, (ax, axl) = new_figure(1, 2, figsize=(11.0, 4.5))
-    fig.set_label("virgin")
-    uu = np.linspace(0, vc.u_bin.max(), 400)
-    ax.plot(vc.u, vc.g, ",", color="0.7", label="Masing branches (halved, shifted)")
-    ax.plot(vc.u_bin, vc.g_bin, "k.", ms=4, label="binned virgin curve")
-    ax.plot(uu, virgin_model(uu, k, d), "C0-", label=f"{nb} blocks")
-    ax.plot(d, virgin_model(d, k, d), "rs", ms=5, label="knots")
-    ax.set_xlabel(f"displacement [{xu}]")
-    ax.set_ylabel(f"force [{pu}]")
-    ax.set_title("virgin curve with knots (cf. paper Fig. 7)")
-    ax.legend(fontsize="small")
-    ul = np.geomspace(vc.u_bin.min(), vc.u_bin.max(), 400)
-    axl.semilogx(vc.u_bin, vc.g_bin, "k.", ms=4)
-    axl.semilogx(ul, virgin_model(ul, k, d), "C0-")
-    for di in d:
-        axl.axvline(di, color="r", lw=0.6, ls=":")
-    axl.set_xlabel(f"displacement [{xu}] (log)")
-    for a in (ax, axl):
-        a.grid(True, alpha=0.3)
-    figs = [fig]
-    model = res.model_object
-    if model is not None:
-        t, x, F = res.data["t"], res.data["x"], res.data["F"]
-        sim = simulate_friction(model, t, x)
-        fig2, (a1, a2) = new_figure(2, 1, figsize=(7.0, 7.0))
-        fig2.set_label("hysteresis")
-        a1.plot(x, F, ",", color="0.5", label="measured")
-        a1.plot(x, sim, "C0-", lw=0.8, label="identified GMS")
-        a1.set_xlabel(f"position [{xu}]")
-        a1.set_ylabel(f"force [{pu}]")
-        a1.legend(fontsize="small")
-        a1.set_title("pre-sliding hysteresis (cf. paper Fig. 6)")
-        a2.plot(t, F - sim, "k-", lw=0.5)
-        a2.set_xlabel("time")
-        a2.set_ylabel("residual")
-        for a in (a1, a2):
-            a.grid(True, alpha=0.3)
-        figs.append(fig2)
-    return figs
+    data = {"t": t, "x": x, "F": F, "virgin": vc, "virgin_k": k, "virgin_d": d, "stribeck": stribeck, "sigma": sigma, "slip_law": slip_law, "model": model,
+            "position_unit": position_unit, "force_unit": force_unit, "time_unit": time_unit}
+    return IdentificationResult("presliding", params, units, info, data=data,
+                                model_object=_gms_si(kq, wq, c, stribeck, sigma, slip_law, to_si), covariance=(list(params), cov_kw))

@@ -2,38 +2,24 @@
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..results import Result, jsonable
+
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-
-def _jsonable(value: Any) -> Any:
-    """Plain-JSON version of ``value`` (non-finite floats become ``None``)."""
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [_jsonable(v) for v in value.tolist()]
-    if isinstance(value, (np.integer,)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    return value
+    from .paper import ReplaySettings
 
 
 @dataclass
-class IdentificationResult:
-    """Identified parameters with standard errors.
+class IdentificationResult(Result):
+    """Identified parameters with standard errors (the shared result protocol of
+    :mod:`gmsfric.results`: ``to_dict``, ``to_json``, ``table``, ``plot``, ``save``).
 
     Attributes
     ----------
@@ -47,6 +33,14 @@ class IdentificationResult:
         JSON-able extras (number of points, fit cost, information criteria, ...).
     data : dict
         Arrays kept for the figures (not exported to JSON).
+    model_object : object or None
+        The identified model in SI (``StaticFriction``, ``GMS``, ``Plant``).
+    covariance : (list of str, ndarray) or None
+        Names and covariance matrix of the parameters, in the data's own units.
+    provenance : dict
+        Input files, columns, units and command line (see :func:`gmsfric.results.provenance`).
+    diagnostics : list
+        Findings about the fit's reliability (empty when there are none).
     """
 
     model: str
@@ -54,8 +48,14 @@ class IdentificationResult:
     units: dict[str, str] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
     data: dict[str, Any] = field(default_factory=dict, repr=False)
-    plotter: Callable[["IdentificationResult"], "list[Figure]"] | None = field(default=None, repr=False)
     model_object: Any = field(default=None, repr=False)
+    covariance: tuple[list[str], NDArray[np.float64]] | None = field(default=None, repr=False)
+    provenance: dict[str, Any] = field(default_factory=dict, repr=False)
+    diagnostics: list[Any] = field(default_factory=list, repr=False)
+
+    @property
+    def kind(self) -> str:  # type: ignore[override]
+        return f"identify.{self.model}"
 
     def value(self, name: str) -> float:
         """The identified value of ``name``."""
@@ -69,24 +69,17 @@ class IdentificationResult:
     def values(self) -> dict[str, float]:
         return {k: v for k, (v, _) in self.parameters.items()}
 
-    def to_dict(self) -> dict[str, Any]:
+    def _body(self) -> dict[str, Any]:
         """``{"model", "parameters": {name: {"value", "stderr"}}, "units", ...info}``."""
         out: dict[str, Any] = {
             "model": self.model,
-            "parameters": {k: {"value": _jsonable(v), "stderr": _jsonable(s)} for k, (v, s) in self.parameters.items()},
+            "parameters": {k: {"value": jsonable(v), "stderr": jsonable(s)} for k, (v, s) in self.parameters.items()},
             "units": dict(self.units),
         }
         for k, v in self.info.items():
             if k not in out:
-                out[k] = _jsonable(v)
+                out[k] = jsonable(v)
         return out
-
-    def to_json(self, path: str | Path | None = None, *, indent: int = 2) -> str:
-        """The JSON text of :meth:`to_dict`; also written to ``path`` when given."""
-        text = json.dumps(self.to_dict(), indent=indent)
-        if path is not None:
-            Path(path).write_text(text + "\n")
-        return text
 
     def table(self) -> str:
         """A plain-text table ``name  value  stderr  unit``."""
@@ -102,24 +95,148 @@ class IdentificationResult:
                 lines.append("  ".join("-" * w for w in widths))
         return "\n".join(lines)
 
-    def plot(self) -> "list[Figure]":
-        """The figures of this fit (matplotlib ``Figure`` objects, no pyplot)."""
-        return [] if self.plotter is None else self.plotter(self)
+    def plot(self) -> dict[str, "Figure"]:
+        """The figures of this fit by file stem (matplotlib ``Figure`` objects, no pyplot)."""
+        from .plots import figures
 
-    def save_figures(self, directory: str | Path, prefix: str | None = None) -> list[Path]:
-        """Save :meth:`plot` as PNG files in ``directory`` (created); returns the paths."""
-        d = Path(directory)
-        d.mkdir(parents=True, exist_ok=True)
-        paths = []
-        for i, fig in enumerate(self.plot()):
-            name = fig.get_label() or f"{i}"
-            p = d / f"{prefix or self.model}_{name}.png"
-            fig.savefig(p, dpi=110)
-            paths.append(p)
-        return paths
+        return figures(self)
 
-    def __str__(self) -> str:
-        return self.table()
+    def _quantities(self) -> dict[str, str]:
+        if self.model == "static_map":
+            return {"fc": "force", "fs": "force", "vs": "velocity", "sigma": "damping", "delta": "dimensionless"}
+        if self.model == "presliding":
+            return {k: ("stiffness" if k.startswith("k") else "force") for k in self.parameters}
+        return {"a": "plant_gain", "b": "rate", "c": "rate_squared", "delay": "time"}
+
+    def _axis(self) -> tuple[bool, str]:
+        """(rotary, drive SI unit) read from the units of the fit."""
+        from .. import units as _units
+
+        if self.model == "static_map":
+            return _units.is_rotary(self.units["vs"], "velocity"), "V"
+        if self.model == "presliding":
+            return _units.is_rotary(self.units["w1"], "force"), "V"
+        a = _units.parse(self.units["a"])
+        return a.dim[3] != 0, "A" if a.dim[4] != 0 else "V"
+
+    def model_document(self) -> dict[str, Any] | None:
+        """The ``gmsfric.model/1`` document of ``model_object`` (SI, units stated, covariance
+        converted to SI, this result's provenance); ``None`` without a model object.  A plant
+        identified without a force gain states none (it cannot be loaded as a Plant)."""
+        if self.model_object is None:
+            return None
+        from .. import units as _units
+        from ..model_io import model_to_dict
+
+        rotary, drive = self._axis()
+        cov = None
+        if self.covariance is not None:
+            names, matrix = self.covariance
+            q = self._quantities()
+            f = np.array([_units.factor(self.units[n], q[n]) for n in names])
+            cov = (list(names), np.asarray(matrix) * np.outer(f, f), [_units.si_unit(q[n], rotary, drive=drive) for n in names])
+        doc = model_to_dict(self.model_object, rotary=rotary, drive=drive, covariance=cov, provenance=self.provenance)
+        if self.model in ("plant", "revised_plant") and self.info.get("force_gain") is None:
+            del doc["parameters"]["force_gain"]
+        return doc
+
+    def _extras(self) -> dict[str, Any]:
+        doc = self.model_document()
+        return {} if doc is None else {"gmsfric_model": doc}
+
+
+@dataclass
+class Replay(Result):
+    """Results of :func:`replay_paper` (the shared result protocol of :mod:`gmsfric.results`;
+    JSON fields ``tables`` and ``truth``)."""
+
+    kind = "paper"
+
+    settings: "ReplaySettings"
+    truth: dict[str, Any]
+    static_map: IdentificationResult
+    presliding: IdentificationResult
+    plant: IdentificationResult
+    revised_static: IdentificationResult
+    revised_gms: IdentificationResult
+    tables: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict, repr=False)
+    diagnostics: list[Any] = field(default_factory=list, repr=False)
+
+    def _body(self) -> dict[str, Any]:
+        return {"tables": self.tables, "truth": self.truth}
+
+    def models(self) -> dict[str, Any]:
+        """The identified models (SI): static map, GMS, plant and the two revised plants."""
+        parts = {"static_map": self.static_map, "gms": self.presliding, "plant": self.plant,
+                 "revised_plant_static": self.revised_static, "revised_plant_gms": self.revised_gms}
+        return {k: r.model_object for k, r in parts.items() if r.model_object is not None}
+
+    def _extras(self) -> dict[str, Any]:
+        from ..model_io import model_to_dict
+
+        return {"gmsfric_model": model_to_dict(self.models(), provenance=self.provenance)}
+
+    def plot(self) -> dict[str, Any]:
+        """The paper's figures: Fig. 3, 5, 6, 7, 10, 11, 12, 13 equivalents."""
+        figs = {}
+        sm = self.static_map.plot()
+        figs["fig5_static_map"] = sm["static_map_fit"]
+        if "static_map_plateaus" in sm:
+            figs["fig4_plateaus"] = sm["static_map_plateaus"]
+        ps = self.presliding.plot()
+        figs["fig7_virgin_curve"] = ps["presliding_virgin"]
+        if "presliding_hysteresis" in ps:
+            figs["fig6_hysteresis"] = ps["presliding_hysteresis"]
+        figs["fig3_frf"] = self.plant.plot()["plant_bode"]
+        rs = self.revised_static.plot()
+        figs["fig10_combined_static"], figs["fig11_revised_static"] = rs["revised_plant_combined"], rs["revised_plant_revised"]
+        rg = self.revised_gms.plot()
+        figs["fig12_combined_gms"], figs["fig13_revised_gms"] = rg["revised_plant_combined"], rg["revised_plant_revised"]
+        return figs
+
+    #: The figures under their historical name.
+    figures = plot
+
+    def table(self) -> str:
+        """Printed / true / identified values for every table of the paper."""
+        return self.report()
+
+    def report(self) -> str:
+        """The tables as text (the same as :meth:`table`)."""
+        lines = []
+        for title, rows in self.tables.items():
+            lines.append(title)
+            head = ("parameter", "unit", "printed", "true", "identified", "stderr", "z")
+            body = [
+                (r["name"], r["unit"], _fmt(r["printed"]), _fmt(r["true"]), _fmt(r["value"]), _fmt(r["stderr"], 2), "-" if r["z"] is None else f"{r['z']:+.1f}")
+                for r in rows
+            ]
+            widths = [max(len(x[i]) for x in [head] + body) for i in range(len(head))]
+            lines.append("  " + "  ".join(h.ljust(w) if i < 2 else h.rjust(w) for i, (h, w) in enumerate(zip(head, widths))))
+            for b in body:
+                lines.append("  " + "  ".join(x.ljust(w) if i < 2 else x.rjust(w) for i, (x, w) in enumerate(zip(b, widths))))
+            lines.append("")
+        return "\n".join(lines)
+
+
+def _fmt(v: Any, digits: int = 5) -> str:
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "-"
+    return f"{v:.{digits}g}"
+
+
+
+def transform_covariance(cov: NDArray[np.float64], jac: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``J C J^T``: the covariance of ``y(x)`` from that of ``x`` to first order (``jac = dy/dx``).
+    Entries that are infinite (undetermined directions) stay infinite instead of becoming NaN."""
+    bad = ~np.isfinite(np.diag(cov))
+    c = np.where(np.isfinite(cov), cov, 0.0)
+    out = jac @ c @ jac.T
+    hit = (np.abs(jac[:, bad]) > 0).any(axis=1) if bad.any() else np.zeros(out.shape[0], dtype=bool)
+    out[hit, :] = np.inf
+    out[:, hit] = np.inf
+    return out
 
 
 def covariance_from_jacobian(jac: NDArray[np.float64], residual: NDArray[np.float64], n_params: int | None = None) -> NDArray[np.float64]:

@@ -23,8 +23,8 @@ from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
 from ..models import FrictionModel
 from ..system import PID, Controller, Plant, simulate_closed_loop
-from .frf import FRF, bode_figure, estimate_frf, zoh_factor
-from .results import IdentificationResult, covariance_from_jacobian
+from .frf import FRF, estimate_frf
+from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
 
 
 def combined_frf(
@@ -156,7 +156,7 @@ def revise_plant(
         "c": (revised.c, float(se[2])),
         "delay": (revised.delay, float(se[3]) if fit_delay else 0.0),
     }
-    units = {"a": "m/(V s^2)", "b": "1/s", "c": "1/s^2", "delay": "s"}
+    units = {"a": "m/(V s^2)", "b": "1/s", "c": "1/s^2", "delay": "s", "force_gain": "N/V"}
     orig_frf, _ = combined_frf(plant, friction, sim_drive, dt, controller=controller, nperseg=nper)
     rev_frf, _ = combined_frf(revised, friction, sim_drive, dt, controller=controller, nperseg=nper)
     dof = max(best.fun.size - q.size, 1)
@@ -167,40 +167,9 @@ def revise_plant(
         "force_gain": plant.force_gain,
         "friction": type(friction).__name__ if friction is not None else None,
     }
+    jac_p = np.eye(4)[:, : cov.shape[0]] * np.array([revised.a, 1.0, 1.0, 1.0])[:, None]
     return IdentificationResult(
-        "revised_plant", params, units, info,
+        "revised_plant", params, units, info, covariance=(["a", "b", "c", "delay"], transform_covariance(cov, jac_p)),
         data={"measured": measured, "original_combined": orig_frf, "revised_combined": rev_frf, "original_plant": plant, "sel": sel},
-        plotter=_plot_revision, model_object=revised,
+        model_object=revised,
     )
-
-
-def _plot_revision(res: IdentificationResult) -> list:
-    meas_all: FRF = res.data["measured"]
-    fmax = float(meas_all.f[res.data["sel"]].max())
-    keep = meas_all.f <= fmax
-    meas = meas_all.select(0.0, fmax)
-    p0: Plant = res.data["original_plant"]
-    f = meas.f
-    orig_H, rev_H = res.data["original_combined"].H[keep], res.data["revised_combined"].H[keep]
-    name = res.info.get("friction") or "no friction"
-    fig1 = bode_figure(
-        [
-            ("actual measurement", f, meas.H, {"color": "0.5", "lw": 0.8}),
-            ("original model", f, p0.frequency_response(f) * zoh_factor(f, meas.dt), {"color": "k", "ls": "--", "lw": 1.0}),
-            (f"combined model ({name})", f, orig_H, {"color": "C3", "lw": 1.2}),
-        ],
-        (f, meas.coherence),
-        title=f"combined model, {name} (cf. Figs. 10/12)",
-    )
-    fig1.set_label("combined")
-    fig2 = bode_figure(
-        [
-            ("actual measurement", f, meas.H, {"color": "0.5", "lw": 0.8}),
-            ("original model", f, p0.frequency_response(f) * zoh_factor(f, meas.dt), {"color": "k", "ls": "--", "lw": 1.0}),
-            (f"revised model ({name})", f, rev_H, {"color": "C2", "lw": 1.2}),
-        ],
-        (f, meas.coherence),
-        title=f"revised model, {name} (cf. Figs. 11/13)",
-    )
-    fig2.set_label("revised")
-    return [fig1, fig2]

@@ -16,19 +16,40 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
+from .. import curves
+from .. import units as _units
 from .._progress import Progress
 from .._validate import as_array, positive, same_length
-from ..errors import IdentificationError, InvalidInputError
-from .results import IdentificationResult, covariance_from_jacobian
+from ..errors import IdentificationError
+from ..models import StaticFriction, Stribeck
+from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
 
 NAMES = ("fc", "fs", "vs", "sigma", "delta")
 MIN_POINTS = 6
 
 
 def static_map_curve(v: ArrayLike, fc: float, fs: float, vs: float, sigma: float, delta: float) -> NDArray[np.float64]:
-    """Paper eq. 2 evaluated at ``v`` (any consistent units)."""
-    v = np.asarray(v, dtype=float)
-    return np.sign(v) * (fc + (fs - fc) * np.exp(-np.abs(v / vs) ** delta)) + sigma * v
+    """Paper eq. 2 evaluated at ``v`` (any consistent units), parameters in the fit's order
+    (:func:`gmsfric.curves.static_map`)."""
+    return curves.static_map(v, fc, fs, vs, delta, sigma)
+
+
+#: Quantity of each parameter (for :mod:`gmsfric.units`).
+QUANTITIES = {"fc": "force", "fs": "force", "vs": "velocity", "sigma": "damping", "delta": "dimensionless"}
+
+
+def static_map_units(velocity_unit: str, force_unit: str) -> dict[str, str]:
+    """Units of ``fc fs vs sigma delta`` for data in ``velocity_unit`` and ``force_unit``, after
+    checking both (a rotary axis: ``rad/s`` with a torque ``N m``)."""
+    rotary = _units.is_rotary(velocity_unit, "velocity", name="velocity_unit")
+    _units.check(force_unit, "force", rotary=rotary, name="force_unit")
+    return {"fc": force_unit, "fs": force_unit, "vs": velocity_unit, "sigma": _units.ratio(force_unit, velocity_unit), "delta": "1"}
+
+
+def static_friction_si(values: dict[str, float], units: dict[str, str]) -> StaticFriction:
+    """The :class:`~gmsfric.models.StaticFriction` of eq. 2 parameters given in ``units``, in SI."""
+    si = {k: _units.to_si(values[k], units[k], QUANTITIES[k], name=f"units[{k!r}]") for k in NAMES}
+    return StaticFriction(Stribeck(si["fc"], si["fs"], si["vs"], si["delta"]), sigma=si["sigma"])
 
 
 # Internal parameter vector: (fc, fs, log vs, sigma, log delta)
@@ -350,13 +371,21 @@ def fit_static_map(
     seed : int, optional
         Seed of the bootstrap.
     velocity_unit, force_unit : str
-        Units of the data, used for the reported units.
+        Units of the data (any :mod:`gmsfric.units` reads; a rotary axis gives ``rad/s`` and
+        ``N m``).  The parameters are reported in them; ``model_object`` is converted to SI.
 
     Returns
     -------
     IdentificationResult
-        ``model="static_map"``, parameters ``fc fs vs sigma delta``.
+        ``model="static_map"``, parameters ``fc fs vs sigma delta``; ``model_object`` the
+        :class:`~gmsfric.models.StaticFriction` in SI.
+
+    Raises
+    ------
+    UnitError
+        ``velocity_unit`` or ``force_unit`` unknown or not of their quantity (before any work).
     """
+    units = static_map_units(velocity_unit, force_unit)
     v = as_array("velocity", velocity)
     F = as_array("force", force)
     same_length("force", F, "velocity", v.size)
@@ -376,7 +405,9 @@ def fit_static_map(
         raise IdentificationError(f"need at least 4 distinct speeds to fit 5 parameters, got {np.unique(np.abs(v)).size}")
     speed, mag, w = np.abs(v), np.sign(v) * F, 1.0 / se
     q, params, r = _fit_side(speed, mag, w, delta_bounds)
-    units = {"fc": force_unit, "fs": force_unit, "vs": velocity_unit, "sigma": f"{force_unit}/({velocity_unit})", "delta": "1"}
+    # covariance of (fc, fs, vs, sigma, delta) from that of (fc, fs, log vs, sigma, log delta)
+    fc_, fs_, vs_, sig_, de_ = _to_params(q)
+    cov = transform_covariance(covariance_from_jacobian(r.jac, r.fun), np.diag([1.0, 1.0, vs_, 1.0, de_]))
     info: dict[str, Any] = {
         "n_points": int(v.size),
         "rms_residual": float(np.sqrt(np.mean((static_map_curve(v, *[params[k][0] for k in NAMES]) - F) ** 2))),
@@ -408,7 +439,8 @@ def fit_static_map(
             arr = np.array(draws)
             info["bootstrap_stderr"] = {k: float(s) for k, s in zip(NAMES, arr.std(axis=0, ddof=1))}
             info["bootstrap_n"] = len(draws)
-    res = IdentificationResult("static_map", params, units, info, data={"velocity": v, "force": F, "force_stderr": se}, plotter=_plot_static_map)
+    res = IdentificationResult("static_map", params, units, info, data={"velocity": v, "force": F, "force_stderr": se},
+                               model_object=static_friction_si({k: p[0] for k, p in params.items()}, units), covariance=(list(NAMES), cov))
     return res
 
 
@@ -443,6 +475,7 @@ def fit_static_map_from_run(
     IdentificationResult
         As :func:`fit_static_map`, with ``info["plateaus"]`` and the rejected ones.
     """
+    static_map_units(velocity_unit, force_unit)
     t = as_array("time", t, min_len=10)
     search = find_plateaus(t, position, force, **plateau_options)
     pl = search.plateaus
@@ -459,45 +492,3 @@ def fit_static_map_from_run(
     res.info["plateaus"] = [{"t_start": float(t[p.start]), "t_stop": float(t[p.stop - 1]), "velocity": p.velocity, "force": p.force, "force_stderr": p.force_stderr} for p in pl]
     res.data.update(t=t, position=np.asarray(position, float), raw_force=np.asarray(force, float), plateaus=pl, rejected=search.rejected)
     return res
-
-
-def _plot_static_map(res: IdentificationResult) -> list:
-    from ..plotting import new_figure
-
-    v, F, se = res.data["velocity"], res.data["force"], res.data["force_stderr"]
-    p = [res.value(k) for k in NAMES]
-    figs = []
-    fig, (ax, axr) = new_figure(2, 1, figsize=(7.0, 6.0), sharex=True)
-    fig.set_label("fit")
-    vmax = np.abs(v).max()
-    vmin = np.abs(v[v != 0]).min()
-    grid = np.geomspace(vmin / 3, vmax * 1.1, 300)
-    grid = np.concatenate((-grid[::-1], grid))
-    ax.plot(grid, static_map_curve(grid, *p), "C0-", label="eq. 2 fit")
-    ax.errorbar(v, F, yerr=se if np.any(se != 1) else None, fmt="k.", ms=4, label="plateau averages")
-    ax.set_xscale("symlog", linthresh=vmin)
-    ax.set_ylabel(f"force [{res.units.get('fc', '')}]")
-    ax.legend(fontsize="small")
-    ax.set_title("static friction map (cf. paper Fig. 5)")
-    axr.plot(v, F - static_map_curve(v, *p), "k.", ms=4)
-    axr.axhline(0, color="C0", lw=0.8)
-    axr.set_ylabel("residual")
-    axr.set_xlabel(f"velocity [{res.units.get('vs', '')}]")
-    for a in (ax, axr):
-        a.grid(True, alpha=0.3)
-    figs.append(fig)
-    if "t" in res.data:
-        fig2, (a1, a2) = new_figure(2, 1, figsize=(8.0, 5.5), sharex=True)
-        fig2.set_label("plateaus")
-        t = res.data["t"]
-        a1.plot(t, res.data["position"], lw=0.8)
-        a2.plot(t, res.data["raw_force"], lw=0.5, color="0.6")
-        for pl in res.data["plateaus"]:
-            a2.plot(t[[pl.start, pl.stop - 1]], [pl.force, pl.force], "C1-", lw=2)
-        for pl in res.data["rejected"]:
-            a2.axvspan(t[pl.start], t[pl.stop - 1], color="r", alpha=0.15)
-        a1.set_ylabel("position")
-        a2.set_ylabel("force (kept plateaus; rejected shaded)")
-        a2.set_xlabel("time")
-        figs.append(fig2)
-    return figs

@@ -3,11 +3,12 @@
 
 Typical use::
 
-    from gmsfric.loop import load_axis_data, run_loop, format_table
+    from gmsfric.loop import load_axis_data, run_loop
     est = load_axis_data("run1.mat", time="t", position="qm", command="vir", gain="gtau")
     val = load_axis_data("run2.mat", time="t", position="qm", command="vir", gain="gtau")
     result = run_loop(est, val)
-    print(format_table(result))
+    print(result.table())
+    result.save("loop-report")   # figures (PNG) and loop.json
 
 See ``docs/loop.md`` for the method and the EMPS results.
 """
@@ -18,9 +19,9 @@ from .closedloop import closed_loop_report, simulate_model
 from .data import AxisData, load_axis_data
 from .effects import CATALOGUE, Effect
 from .idim import LinearModel, Preprocessing, Signals, fit_baseline, reference_model, relative_error
-from .report import format_table, save_figures
 from .residuals import Finding, analyse
-from .select import LoopConfig, LoopResult, Step, run_loop
+from .results import LoopResult, Step
+from .select import LoopConfig, run_loop
 
 __all__ = [
     "AxisData",
@@ -41,6 +42,4 @@ __all__ = [
     "run_loop",
     "simulate_model",
     "closed_loop_report",
-    "format_table",
-    "save_figures",
 ]

@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import argparse
-import json
-import sys
-from pathlib import Path
 from typing import Any
 
+from .. import units as _units
+from ..cli import Run, declare_files, fraction, positive_float
 from ..errors import DataError
 from ..io import read_table
 from ..system import Cascade
 from .closedloop import closed_loop_report
 from .data import load_axis_data
-from .report import format_table, save_figures
 from .select import LoopConfig, run_loop
 
 
@@ -40,18 +38,24 @@ def register(subparsers: Any) -> None:
     p.add_argument("--plot", metavar="DIR", help="write figures (PNG) into DIR")
     p.add_argument("--baseline", choices=("reference", "rigid"), default="reference",
                    help="reference: M qdd + Fv qd + Fc sign(qd) + offset (EMPS, default); rigid: without the offset, which becomes a candidate effect")
-    p.add_argument("--holdout", type=float, default=0.3, help="fraction of EST held out when there is no --validate (default 0.3)")
+    p.add_argument("--holdout", type=fraction, default=0.3, help="fraction of EST held out when there is no --validate (default 0.3)")
     cl = p.add_argument_group("closed-loop simulation (optional: needs a reference and a cascade controller)")
     cl.add_argument("--reference", metavar="COL", help="reference position column")
     cl.add_argument("--disturbance", metavar="COL", help="input disturbance column of the validation run (command units), e.g. pulses_N")
     cl.add_argument("--kp", metavar="K", help="cascade position gain (1/s): number or scalar name")
     cl.add_argument("--kv", metavar="K", help="cascade velocity gain (command per m/s): number or scalar name")
-    cl.add_argument("--drive-limit", type=float, default=None, help="symmetric drive limit (command units)")
-    p.add_argument("--quiet", action="store_true", help="no progress output")
-    p.set_defaults(func=main)
+    cl.add_argument("--drive-limit", type=positive_float, default=None, help="symmetric drive limit (command units)")
+    declare_files(p, inputs=("est", "validate"), outputs=("json",), output_dirs=("plot",))
+    p.set_defaults(func=_loop)
 
 
-def main(args: argparse.Namespace) -> int:
+def _loop(args: argparse.Namespace, run: Run) -> int:
+    """Run ``gmsfric loop`` (called by the runner of :mod:`gmsfric.cli`)."""
+    _units.check(args.time_unit, "time", name="--time-unit")
+    rotary = _units.is_rotary(args.position_unit, "position", name="--position-unit")
+    _units.check(args.force_unit, "force", rotary=rotary, name="--force-unit")
+    if (args.kp is None) != (args.kv is None) or (args.kp is not None and not args.reference):
+        raise DataError("the closed-loop simulation needs --reference, --kp and --kv together")
     if args.command_col is not None and args.gain is None:
         raise DataError("--command needs --gain (a number or a scalar name in the file)")
     if args.force is not None and args.gain is not None:
@@ -64,9 +68,8 @@ def main(args: argparse.Namespace) -> int:
     if args.validate:
         val = load_axis_data(args.validate, disturbance=args.disturbance, **common)
     base = ("inertia", "viscous", "coulomb", "offset") if args.baseline == "reference" else ("inertia", "viscous", "coulomb")
-    cfg = LoopConfig(holdout_fraction=args.holdout, baseline=base, progress=not args.quiet)
+    cfg = LoopConfig(holdout_fraction=args.holdout, baseline=base, progress=run.progress)
     result = run_loop(est, val, cfg)
-    sims = None
     if args.reference and args.kp is not None and args.kv is not None:
         kp, kv = est_table.number(args.kp, "kp"), est_table.number(args.kv, "kv")
         lim = args.drive_limit
@@ -74,11 +77,14 @@ def main(args: argparse.Namespace) -> int:
         runs = {"estimation": result.split.est}
         if val is not None:
             runs["validation"] = result.split.val
-        result.closed_loop, sims = closed_loop_report({"baseline": result.baseline, "final": result.final}, runs, ctrl)
-    print(format_table(result))
+        result.closed_loop, result.closed_loop_runs = closed_loop_report({"baseline": result.baseline, "final": result.final}, runs, ctrl)
+    print(result.table())
+    columns = {"time": args.time, "position": args.position, "force": args.force, "command": args.command_col, "reference": args.reference,
+               "disturbance": args.disturbance}
+    result.provenance = run.provenance(columns=columns, units={"time": args.time_unit, "position": args.position_unit, "force": args.force_unit},
+                                       gain=args.gain)
     if args.json:
-        Path(args.json).write_text(json.dumps(result.as_dict(), indent=2))
+        run.write_json(args.json, result)
     if args.plot:
-        paths = save_figures(result, args.plot, sims)
-        print(f"{len(paths)} figures written to {args.plot}", file=sys.stderr)
+        run.write_figures(args.plot, result.plot())
     return 0

@@ -14,13 +14,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import units
 from ..errors import DataError
 from ..io import Table, load_columns, read_table
-
-#: Unit factors to SI accepted at the boundary.
-POSITION_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "rad": 1.0, "deg": np.pi / 180.0}
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
-FORCE_UNITS = {"N": 1.0, "kN": 1e3, "mN": 1e-3, "Nm": 1.0}
 
 #: Fewest samples a run may have: the filter, the derivatives and the held-out split need room.
 MIN_SAMPLES = 200
@@ -46,6 +42,8 @@ class AxisData:
     reference, disturbance : ndarray or None
         Optional reference position (m) and input disturbance (input units, added to the
         controller output), for the closed-loop simulation.
+    rotary : bool
+        A rotary axis: positions in rad and forces in N m (torques) instead of m and N.
     """
 
     t: NDArray[np.float64]
@@ -57,6 +55,7 @@ class AxisData:
     reference: NDArray[np.float64] | None = None
     disturbance: NDArray[np.float64] | None = None
     meta: dict[str, float] = field(default_factory=dict)
+    rotary: bool = False
 
     def __post_init__(self) -> None:
         n = self.t.size
@@ -93,12 +92,6 @@ class AxisData:
         return int(self.t.size)
 
 
-def _factor(units: dict[str, float], unit: str, role: str) -> float:
-    if unit not in units:
-        raise DataError(f"unknown {role} unit {unit!r}; use one of {', '.join(units)}")
-    return units[unit]
-
-
 def load_axis_data(
     path: str | Path | Table,
     *,
@@ -132,7 +125,9 @@ def load_axis_data(
         disturbance added to the controller output (command units), used only for the
         closed-loop simulation.
     time_unit, position_unit, force_unit : str
-        Units in the file (``s``/``ms``; ``m``/``mm``/``um``/``rad``; ``N``/``kN``/``mN``).
+        Units in the file, any that :mod:`gmsfric.units` reads (``s``, ``ms``; ``m``, ``mm``,
+        ``um``; ``N``, ``mN``, ``kN``).  A rotary axis gives its position in ``rad`` or ``deg`` and
+        its force as a torque (``N m``).
 
     Returns
     -------
@@ -143,7 +138,13 @@ def load_axis_data(
     DataError
         Unknown column or scalar, mismatched lengths, non-finite values, non-monotonic or
         non-uniform time, too few samples, or an ambiguous force specification.
+    UnitError
+        A unit that is unknown or not of its quantity (checked before the file is read).
     """
+    kt = units.factor(time_unit, "time", name="time_unit")
+    rotary = units.is_rotary(position_unit, "position", name="position_unit")
+    kq = units.factor(position_unit, "position", name="position_unit")
+    kf = units.factor(force_unit, "force", rotary=rotary, name="force_unit")
     table = path if isinstance(path, Table) else read_table(path)
     if (force is None) == (command is None):
         raise DataError(f"{table.source}: give either a force column or a command column with a gain (not both, not neither)")
@@ -151,9 +152,6 @@ def load_axis_data(
         raise DataError(f"{table.source}: a command column needs a drive gain (a number or a scalar name in the file)")
     if force is not None and gain is not None:
         raise DataError(f"{table.source}: a gain only makes sense with a command column")
-    kt = _factor(TIME_UNITS, time_unit, "time")
-    kq = _factor(POSITION_UNITS, position_unit, "position")
-    kf = _factor(FORCE_UNITS, force_unit, "force")
     mapping = {"time": time, "position": position}
     if force is not None:
         mapping["force"] = force
@@ -182,4 +180,5 @@ def load_axis_data(
         reference=None if reference is None else cols["reference"] * kq,
         disturbance=cols.get("disturbance"),
         meta=dict(table.scalars),
+        rotary=rotary,
     )

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.polynomial import legendre
 from scipy import signal
 
+from .. import curves
 from .. import models as _models
 from .idim import Array, LinearModel, Signals, Term
 
@@ -150,7 +151,7 @@ def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
     for delta in (1.0, 2.0):
         for vs in s.v_scale * np.geomspace(0.003, 0.5, 14):
-            t = Term("stribeck", ("Fs_minus_Fc",), lambda s, h: np.sign(s.qd) * np.exp(-np.abs(s.qd / h[0]) ** h[1]), (float(vs), delta), ("vs", "stribeck_delta"))
+            t = Term("stribeck", ("Fs_minus_Fc",), lambda s, h: np.sign(s.qd) * curves.stribeck_shape(s.qd, h[0], h[1]), (float(vs), delta), ("vs", "stribeck_delta"))
             out.append(_add(model, t, "stribeck"))
     return out
 

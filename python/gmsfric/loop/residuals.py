@@ -26,16 +26,13 @@ variable            statistic                                    suggests
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from scipy import signal
 
 from .effects import position_periodogram, position_profile
 from .idim import Array, Signals
-
-if TYPE_CHECKING:  # pragma: no cover
-    from matplotlib.figure import Figure
 
 SUGGESTS = {
     "velocity": ["stribeck", "asymmetric_friction"],
@@ -282,46 +279,3 @@ def analyse(s: Signals, r: Array, y_hat: Array, *, seed: int = 0, variables: lis
             f = binned_test("reversal", np.log10(dist[near]), r[near], rng=rng, odd_sign=sg[near], nbins=16)
             out.append(f)
     return out
-
-
-def plot_finding(f: Finding) -> "Figure":
-    """Figure of one residual test: residual against the variable with binned means, or the
-    cross-correlation / coherence / position periodogram."""
-    from ..plotting import new_figure
-
-    extra = "periodogram" in f.curve
-    fig, axes = new_figure(1, 2 if extra else 1, figsize=(10.0 if extra else 6.5, 4.0))
-    ax = axes[0]
-    c = f.curve
-    if "centres" in c:
-        x = c["x"]
-        scale, unit = {"velocity": (1e3, "velocity [mm/s]"), "position": (1e3, "position [mm]"), "position_odd": (1e3, "position [mm]"),
-                       "time": (1.0, "time [s]"), "time_even": (1.0, "time [s]"), "acceleration": (1.0, "acceleration [m/s²]"),
-                       "reversal": (1.0, "log10 distance since reversal [m]")}[f.variable]
-        step = max(1, x.size // 4000)
-        ax.plot(x[::step] * scale, c["y"][::step], ".", ms=1.5, alpha=0.3, color="0.5")
-        ax.plot(c["centres"] * scale, c["means"], "o-", color="C3", label="binned mean")
-        ax.set_xlabel(unit)
-        ax.set_ylabel("residual" + (" × sign(qd)" if f.variable in ("position_odd", "time", "reversal") else "") + " [N]")
-        lim = np.nanmax(np.abs(c["means"])) * 4 + 1e-9
-        ax.set_ylim(-lim, lim)
-    elif "xcorr" in c:
-        ax.plot(c["lags_s"] * 1e3, c["xcorr"], "o-")
-        ax.set_xlabel("lag of predicted force [ms]")
-        ax.set_ylabel("cross-correlation")
-    elif "coherence" in c:
-        ax.plot(c["f"], c["coherence"], label="coherence(residual, qdd)")
-        ax2 = ax.twinx()
-        ax2.semilogy(c["psd_f"], c["psd"], color="C1", lw=0.8)
-        ax2.set_ylabel("residual PSD [N²/Hz]")
-        ax.set_xlabel("frequency [Hz]")
-        ax.set_ylabel("coherence")
-    ax.set_title(f"{f.variable}: stat={f.statistic:.3g}, z={f.z:.1f}{' (significant)' if f.significant else ''}", fontsize="medium")
-    ax.grid(True, alpha=0.3)
-    if extra:
-        axes[1].semilogy(c["spatial_freq"] * 1e-3, c["periodogram"])
-        axes[1].set_xlabel("spatial frequency [1/mm]")
-        axes[1].set_ylabel("periodogram")
-        axes[1].set_title("residual in the position domain", fontsize="medium")
-        axes[1].grid(True, alpha=0.3)
-    return fig

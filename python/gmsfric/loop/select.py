@@ -17,17 +17,19 @@ unexplained, with the variable it correlates with.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
 
 from .._progress import Progress
-from ..errors import IdentificationError
+from .._validate import finite, non_negative
+from ..errors import IdentificationError, InvalidInputError
 from .data import AxisData
 from .effects import CATALOGUE, Effect
-from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, lstsq, relative_error
+from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, relative_error
 from .residuals import Finding, analyse
+from .results import LoopResult, Step
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,17 @@ class LoopConfig:
     seed: int = 0
     progress: bool = True
 
+    def __post_init__(self) -> None:
+        f = finite("holdout_fraction", self.holdout_fraction)
+        if not 0.0 < f < 1.0:
+            raise InvalidInputError(f"`holdout_fraction` must be between 0 and 1 (exclusive), got {f}")
+        for name, low in (("n_blocks", 1), ("inner_folds", 2), ("max_effects", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+                raise InvalidInputError(f"`{name}` must be an integer >= {low}, got {v!r}")
+        finite("t_threshold", self.t_threshold)
+        non_negative("min_gain", self.min_gain)
+
 
 @dataclass
 class Split:
@@ -94,106 +107,6 @@ class Split:
         e = relative_error(self.est.y[self.est_rows], m.predict(self.est)[self.est_rows])
         v = relative_error(self.val.y[self.val_rows], m.predict(self.val)[self.val_rows])
         return e, v
-
-
-@dataclass
-class Step:
-    """One tested effect.
-
-    Attributes
-    ----------
-    round : int
-        Loop round (1 = first effect tried on top of the baseline).
-    effect : str
-    accepted : bool
-    reason : str
-        Why it was accepted or rejected.
-    evidence : dict
-        The residual test pointing at this effect before the step (see :class:`Finding`),
-        plus the cross-validation gain, held-out t statistic and BIC change.
-    estimation_error_pct, validation_error_pct : float
-        Errors of the model with this effect.
-    parameters : dict
-        ``{name: {"value", "std"}}`` of the extended model.
-    """
-
-    round: int
-    effect: str
-    accepted: bool
-    reason: str
-    evidence: dict[str, Any]
-    estimation_error_pct: float
-    validation_error_pct: float
-    parameters: dict[str, dict[str, float]]
-    model: LinearModel | None = field(default=None, repr=False)
-
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "round": self.round,
-            "effect": self.effect,
-            "accepted": self.accepted,
-            "reason": self.reason,
-            "evidence": self.evidence,
-            "estimation_error_pct": _num(self.estimation_error_pct),
-            "validation_error_pct": _num(self.validation_error_pct),
-            "parameters": _round_params(self.parameters),
-        }
-
-
-def _num(x: float) -> float | None:
-    return round(float(x), 4) if np.isfinite(x) else None
-
-
-def _round_params(p: dict[str, dict[str, float]]) -> dict[str, dict[str, float | None]]:
-    def r(x: float) -> float | None:
-        return None if not np.isfinite(x) else float(f"{x:.6g}")
-
-    return {k: {"value": r(v["value"]), "std": r(v["std"])} for k, v in p.items()}
-
-
-@dataclass
-class LoopResult:
-    """Outcome of :func:`run_loop` (``as_dict()`` gives the JSON of ``gmsfric loop``)."""
-
-    split: Split
-    baseline: LinearModel
-    baseline_errors: tuple[float, float]
-    steps: list[Step]
-    final: LinearModel
-    final_errors: tuple[float, float]
-    unexplained: list[dict[str, Any]]
-    findings: dict[str, list[Finding]]
-    closed_loop: dict[str, Any] = field(default_factory=dict)
-    alignment: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def effects(self) -> list[str]:
-        """Accepted effects, in order."""
-        return list(self.final.effects)
-
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "estimation": self.split.est.data.source,
-            "validation": self.split.holdout,
-            "baseline": {
-                "model": self.baseline.describe(),
-                "estimation_error_pct": round(self.baseline_errors[0], 4),
-                "validation_error_pct": round(self.baseline_errors[1], 4),
-                "parameters": _round_params(self.baseline.params()),
-            },
-            "alignment": self.alignment,
-            "steps": [s.as_dict() for s in self.steps],
-            "final": {
-                "effects": self.effects,
-                "model": self.final.describe() + "".join(f" + {e}" for e in self.final.effects if e != "input_delay" and e not in self.final.describe()),
-                "estimation_error_pct": round(self.final_errors[0], 4),
-                "validation_error_pct": round(self.final_errors[1], 4),
-                "parameters": _round_params(self.final.params()),
-            },
-            "unexplained": self.unexplained,
-            "residual_tests": {k: [f.as_dict() for f in v] for k, v in self.findings.items()},
-            "closed_loop": self.closed_loop,
-        }
 
 
 def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
