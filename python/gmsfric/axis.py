@@ -247,7 +247,13 @@ class Covariance:
         object.__setattr__(self, "names", tuple(self.names))
         object.__setattr__(self, "matrix", m)
 
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Covariance) and self.names == other.names and bool(np.array_equal(self.matrix, other.matrix))
+
+    __hash__ = None  # type: ignore[assignment]
+
     def stderr(self) -> dict[str, float]:
+        """Standard error of each parameter (SI)."""
         return {n: float(np.sqrt(max(self.matrix[i, i], 0.0))) for i, n in enumerate(self.names)}
 
 
@@ -304,6 +310,10 @@ class AxisModel(NativeBacked):
                 raise InvalidInputError("give `command` or `feedforward`, not both")
             options["feedforward"] = command
         return simulate_closed_loop(self, None, controller, reference, dt, **options)
+
+    def model_document(self) -> dict[str, Any]:
+        """The model file's document (``save_model`` writes it; covariance and provenance included)."""
+        return axis_document(self)
 
     # -- parameters ------------------------------------------------------------------------
 
@@ -388,3 +398,160 @@ def _replace(obj: Any, path: Sequence[str], value: float, full: str) -> Any:
 
 
 __all__ = ["AxisModel", "AxisUnits", "Effects", "PositionSeries", "Drift", "Heating", "Compliance", "Covariance"]
+
+
+# ------------------------------------------------------------------------------------------
+# the model file (``save_model`` / ``load_model``, kind "axis")
+
+#: Quantity of each parameter path's last component, for the model file's units.
+_QUANTITY = {
+    "plant.a": "plant_gain", "plant.b": "rate", "plant.c": "rate_squared", "plant.delay": "time", "plant.force_gain": "force_gain",
+    "asymmetry.d_level": "force", "asymmetry.d_viscous": "damping",
+    "drift.scale": "time", "drift.d_level": "force", "drift.d_viscous": "damping",
+    "heating.tau": "time", "heating.d_level": "damping", "heating.d_viscous": "damping_per_velocity",
+    "blocks.k": "stiffness", "blocks.w": "force",
+    "compliance.mass": "mass", "compliance.fn_hz": "frequency", "compliance.zeta": "dimensionless",
+    "series.lo": "position", "series.hi": "position", "series.periods": "position", "series.coef": "force",
+    "series.q0": "position", "series.dq": "position", "series.values": "force", "series.harmonics": "dimensionless",
+}
+
+_FRICTION_QUANTITY = {"fc": "force", "fs": "force", "vs": "velocity", "delta": "dimensionless", "sigma": "damping", "offset": "force",
+                      "v_linear": "velocity", "k": "stiffness", "w": "force", "alpha": "dimensionless", "c": "force_rate",
+                      "sigma0": "stiffness", "sigma1": "damping", "sigma2": "damping"}
+
+
+def parameter_quantity(path: str) -> str:
+    """The quantity (:mod:`gmsfric.units`) of a parameter path of :meth:`AxisModel.parameters`."""
+    parts = [p for p in path.split(".") if not p.isdigit()]
+    if parts[0] == "plant":
+        return _QUANTITY[".".join(parts[:2])]
+    if parts[0] == "friction":
+        return _FRICTION_QUANTITY[parts[-1]]
+    if parts[0] == "effects" and len(parts) >= 2 and parts[1] == "asymmetry":
+        return "force" if path.endswith(".0") else "damping"
+    if parts[0] == "effects" and len(parts) >= 3:
+        group = "series" if parts[1] in ("position_force", "position_friction") else parts[1]
+        return _QUANTITY[f"{group}.{parts[2]}"]
+    raise InvalidInputError(f"no parameter `{path}`")
+
+
+def _encode_axis(m: AxisModel) -> tuple[dict[str, tuple[Any, str]], dict[str, Any]]:
+    from .model_io import _kind_of
+
+    params: dict[str, tuple[Any, str]] = {f"plant.{n}": (getattr(m.plant, n), _QUANTITY[f"plant.{n}"]) for n in ("a", "b", "c", "delay", "force_gain")}
+    options: dict[str, Any] = {"command_unit": m.units.command}
+    if m.friction is not None:
+        mk = _kind_of(m.friction)
+        fp, fo = mk.encode(m.friction)
+        params.update({f"friction.{k}": v for k, v in fp.items()})
+        options["friction"] = mk.kind
+        options.update({f"friction.{k}": v for k, v in fo.items()})
+    e = m.effects
+    if e.asymmetry is not None:
+        params["effects.asymmetry.d_level"] = (e.asymmetry[0], "force")
+        params["effects.asymmetry.d_viscous"] = (e.asymmetry[1], "damping")
+    for name in ("position_force", "position_friction"):
+        s: PositionSeries | None = getattr(e, name)
+        if s is None:
+            continue
+        options[f"effects.{name}"] = s.kind
+        fields = {"legendre": ("lo", "hi", "coef"), "fourier": ("periods", "harmonics", "coef"), "table": ("q0", "dq", "values")}[s.kind]
+        for f in fields:
+            v = getattr(s, f)
+            params[f"effects.{name}.{f}"] = (list(v) if isinstance(v, tuple) else float(v), _QUANTITY[f"series.{f}"])
+    for name, fields in (("drift", ("scale", "d_level", "d_viscous")), ("heating", ("tau", "d_level", "d_viscous")), ("compliance", ("mass", "fn_hz", "zeta"))):
+        obj = getattr(e, name)
+        if obj is not None:
+            for f in fields:
+                params[f"effects.{name}.{f}"] = (getattr(obj, f), _QUANTITY[f"{name}.{f}"])
+    if e.drift is not None:
+        options["effects.drift"] = e.drift.shape
+    if e.blocks is not None:
+        params["effects.blocks.k"] = (list(e.blocks.k), "stiffness")
+        params["effects.blocks.w"] = (list(e.blocks.w), "force")
+    return params, options
+
+
+def _decode_axis(p: Any) -> AxisModel:
+    from . import units as _units
+    from .model_io import _KINDS, ModelFormatError, Parameters
+
+    doc = p.document
+    options = doc.get("options", {}) or {}
+    rotary = p.rotary
+    plant = Plant(*(p.get(f"plant.{n}", _QUANTITY[f"plant.{n}"]) for n in ("a", "b", "c", "delay", "force_gain")))
+    friction = None
+    fkind = options.get("friction")
+    if fkind is not None:
+        if fkind not in _KINDS or fkind in ("axis", "plant"):
+            raise ModelFormatError(f"{p.source}: unknown friction kind {fkind!r}")
+        sub = {
+            "kind": fkind,
+            "axis": "rotary" if rotary else "linear",
+            "parameters": {k[len("friction."):]: v for k, v in doc["parameters"].items() if k.startswith("friction.")},
+            "options": {k[len("friction."):]: v for k, v in options.items() if k.startswith("friction.")},
+        }
+        fp = Parameters(sub, f"{p.source} (friction)")
+        friction = _KINDS[fkind].decode(fp)
+        fp.check_all_used()
+        p.used.update(f"friction.{n}" for n in fp.used)
+    kw: dict[str, Any] = {}
+    if p.has("effects.asymmetry.d_level"):
+        kw["asymmetry"] = (p.get("effects.asymmetry.d_level", "force"), p.get("effects.asymmetry.d_viscous", "damping"))
+    for name in ("position_force", "position_friction"):
+        kind = options.get(f"effects.{name}")
+        if kind is None:
+            continue
+        g = lambda f, vector=False: p.get(f"effects.{name}.{f}", _QUANTITY[f"series.{f}"], vector=vector)  # noqa: E731
+        if kind == "legendre":
+            kw[name] = PositionSeries.legendre(g("lo"), g("hi"), g("coef", True))
+        elif kind == "fourier":
+            kw[name] = PositionSeries.fourier(g("periods", True), int(round(g("harmonics"))), g("coef", True))
+        elif kind == "table":
+            q0, dq, values = g("q0"), g("dq"), g("values", True)
+            kw[name] = PositionSeries("table", q0=q0, dq=dq, values=tuple(values))
+        else:
+            raise ModelFormatError(f"{p.source}: unknown series kind {kind!r} for {name}")
+    if p.has("effects.drift.scale"):
+        shape = options.get("effects.drift", "linear")
+        kw["drift"] = Drift(shape, *(p.get(f"effects.drift.{f}", _QUANTITY[f"drift.{f}"]) for f in ("scale", "d_level", "d_viscous")))
+    if p.has("effects.heating.tau"):
+        kw["heating"] = Heating(*(p.get(f"effects.heating.{f}", _QUANTITY[f"heating.{f}"]) for f in ("tau", "d_level", "d_viscous")))
+    if p.has("effects.compliance.mass"):
+        kw["compliance"] = Compliance(*(p.get(f"effects.compliance.{f}", _QUANTITY[f"compliance.{f}"]) for f in ("mass", "fn_hz", "zeta")))
+    if p.has("effects.blocks.k"):
+        kw["blocks"] = MaxwellSlip(p.get("effects.blocks.k", "stiffness", vector=True), p.get("effects.blocks.w", "force", vector=True))
+    cov = None
+    c = doc.get("covariance")
+    if c is not None:
+        try:
+            names = [str(n) for n in c["names"]]
+            f = np.array([_units.factor(str(u), parameter_quantity(n), rotary=rotary, name=f"covariance unit of {n}") for n, u in zip(names, c["units"])])
+            cov = Covariance(tuple(names), np.asarray(c["matrix"], dtype=float) * np.outer(f, f))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ModelFormatError(f"{p.source}: malformed covariance: {exc}") from None
+    units = AxisUnits("rotary" if rotary else "linear", str(options.get("command_unit", "V")))
+    return AxisModel(plant, friction, Effects(**kw), units, cov, dict(doc.get("provenance", {}) or {}))
+
+
+def axis_document(model: AxisModel, provenance: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The model file's document of ``model`` (its covariance and provenance included)."""
+    from . import units as _units
+    from .model_io import model_to_dict
+
+    rotary = model.units.kind == "rotary"
+    drive = _units.drive_base(model.units.command, name="units.command")
+    cov = None
+    if model.covariance is not None:
+        names = list(model.covariance.names)
+        cov = (names, model.covariance.matrix, [_units.si_unit(parameter_quantity(n), rotary, drive=drive) for n in names])
+    return model_to_dict(model, rotary=rotary, drive=drive, covariance=cov, provenance={**dict(model.provenance), **dict(provenance or {})})
+
+
+def _register() -> None:
+    from .model_io import register_kind
+
+    register_kind("axis", AxisModel, _encode_axis, _decode_axis, replace=True)
+
+
+_register()

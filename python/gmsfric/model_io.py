@@ -127,6 +127,8 @@ class Parameters:
 
     def __init__(self, doc: Mapping[str, Any], source: str) -> None:
         self.source = source
+        #: The whole model document (for kinds that read more than parameters and options).
+        self.document = doc
         self.kind = str(doc.get("kind"))
         axis = doc.get("axis", "linear")
         if axis not in ("linear", "rotary"):
@@ -460,7 +462,11 @@ def save_model(
 ) -> Path:
     """Write the model document of ``model`` to ``path`` (atomically); returns the path.
     Arguments as :func:`model_to_dict`."""
-    doc = model_to_dict(model, rotary=rotary, drive=drive, covariance=covariance, provenance=provenance)
+    if hasattr(model, "model_document") and covariance is None and provenance is None and not rotary:
+        # Models that carry their own covariance, units and provenance (AxisModel) write them.
+        doc = model.model_document()
+    else:
+        doc = model_to_dict(model, rotary=rotary, drive=drive, covariance=covariance, provenance=provenance)
     return write_text_atomic(path, dumps(doc) + "\n")
 
 

@@ -20,7 +20,7 @@ from typing import ClassVar, Literal, Sequence, Union
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import _gmsfric
+from . import _gmsfric, curves
 from ._validate import as_array, number, same_length
 from .errors import InvalidInputError
 
@@ -72,8 +72,7 @@ class Stribeck:
 
     def __call__(self, v: ArrayLike) -> NDArray[np.float64]:
         """Evaluate ``s(v)`` (N) on velocities ``v`` (m/s)."""
-        v = as_array("v", v)
-        return self.fc + (self.fs - self.fc) * np.exp(-np.abs(v / self.vs) ** self.delta)
+        return curves.stribeck(as_array("v", v), *self.params)
 
     @property
     def params(self) -> tuple[float, float, float, float]:
@@ -213,10 +212,7 @@ class GMS(NativeBacked):
 
     def virgin_curve(self, x: ArrayLike) -> NDArray[np.float64]:
         """Quasi-static virgin curve ``sign(x) sum_i min(k_i |x|, alpha_i s(0))`` (N)."""
-        x = as_array("x", x)
-        k = np.asarray(self.k)[:, None]
-        w = self.break_forces[:, None]
-        return np.sign(x) * np.minimum(k * np.abs(x)[None, :], w).sum(axis=0)
+        return curves.virgin_curve(as_array("x", x), self.k, self.break_forces)
 
     def static_map(self) -> StaticFriction:
         """The static map the model settles on at constant velocity."""
@@ -241,8 +237,7 @@ class MaxwellSlip(NativeBacked):
 
     def virgin_curve(self, x: ArrayLike) -> NDArray[np.float64]:
         """``sign(x) sum_i min(k_i |x|, w_i)`` (N)."""
-        x = as_array("x", x)
-        return np.sign(x) * np.minimum(np.asarray(self.k)[:, None] * np.abs(x)[None, :], np.asarray(self.w)[:, None]).sum(axis=0)
+        return curves.virgin_curve(as_array("x", x), self.k, self.w)
 
 
 @dataclass(frozen=True)

@@ -290,6 +290,9 @@ QUANTITIES: dict[str, Quantity] = {
         _q("force_gain", _per_drive(_N), _per_drive(_F_ROT), "N/V", "N m/V", "N/V, N/A or N m/V"),
         _q("force_rate", _mul(_N, _T, -1), _mul(_F_ROT, _T, -1), "N/s", "N m/s", "N/s or N m/s"),
         _q("inverse_position", _pow(_L, -1), _pow(_A, -1), "1/m", "1/rad", "1/m or 1/rad"),
+        # a viscous coefficient per unit of speed (heating: viscous shift per m/s of low-passed speed)
+        _q("damping_per_velocity", _mul(_mul(_N, _pow(_T, 2)), _pow(_L, -2)), _mul(_mul(_F_ROT, _pow(_T, 2)), _pow(_A, -2)),
+           "N s^2/m^2", "N m s^2/rad^2", "N s^2/m^2 or N m s^2/rad^2"),
     )
 }
 
@@ -418,13 +421,13 @@ _DISPLAY_LINEAR = {
     "position": "mm", "velocity": "mm/s", "acceleration": "mm/s^2", "force": "N", "stiffness": "N/um",
     "damping": "N s/m", "mass": "kg", "time": "s", "frequency": "Hz", "rate": "1/s", "rate_squared": "1/s^2",
     "dimensionless": "1", "drive": "V", "voltage": "V", "current": "A", "plant_gain": "mm/(V s^2)",
-    "force_gain": "N/V", "force_rate": "N/s", "inverse_position": "1/mm",
+    "force_gain": "N/V", "force_rate": "N/s", "inverse_position": "1/mm", "damping_per_velocity": "N s^2/m^2",
 }
 _DISPLAY_ROTARY = {
     **_DISPLAY_LINEAR,
     "position": "rad", "velocity": "rad/s", "acceleration": "rad/s^2", "force": "N m", "stiffness": "N m/rad",
     "damping": "N m s/rad", "mass": "kg m^2", "plant_gain": "rad/(V s^2)", "force_gain": "N m/V", "force_rate": "N m/s",
-    "inverse_position": "1/rad",
+    "inverse_position": "1/rad", "damping_per_velocity": "N m s^2/rad^2",
 }
 _DEGREES = {"position": "deg", "velocity": "deg/s", "acceleration": "deg/s^2", "stiffness": "N m/deg", "damping": "N m s/deg",
             "plant_gain": "deg/(V s^2)", "inverse_position": "1/deg"}

@@ -16,13 +16,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import units as _units
+from ..errors import InvalidInputError
 from ..results import Result
 from .idim import LinearModel
 from .residuals import Finding
 
-if TYPE_CHECKING:  # pragma: no cover
+if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from ..axis import AxisModel
     from ..system import ClosedLoopResult
     from .select import Split
 
@@ -174,6 +176,20 @@ class LoopResult(Result):
             "residual_tests": {k: [f.as_dict() for f in v] for k, v in self.findings.items()},
             "closed_loop": self.closed_loop,
         }
+
+    def axis_model(self) -> "AxisModel":
+        """The final model as an :class:`~gmsfric.axis.AxisModel` (effects in feedback)."""
+        from .axis_model import to_axis_model
+
+        est = self.split.est
+        return to_axis_model(self.final, est, gain=est.data.gain, kind="rotary" if self.rotary else "linear", provenance=self.provenance)
+
+    def _extras(self) -> dict[str, Any]:
+        # `load_model` on the loop's JSON gives the final model, ready to simulate.
+        try:
+            return {"gmsfric_model": self.axis_model().model_document()}
+        except InvalidInputError as exc:  # a model the core cannot simulate (non-positive mass)
+            return {"gmsfric_model_error": str(exc)}
 
     def as_dict(self) -> dict[str, Any]:
         """Alias of :meth:`to_dict`."""

@@ -1,0 +1,83 @@
+"""Models move between commands through model files without losing anything."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import gmsfric as g
+from gmsfric.loop import LoopConfig, load_axis_data, run_loop
+
+EMPS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "emps"
+
+
+def full_axis() -> g.AxisModel:
+    return g.AxisModel(
+        g.Plant.from_mass(2.0, force_gain=35.0, delay=3e-4),
+        g.StaticFriction(g.Stribeck(20.0, 9.0, 0.013), 200.0, offset=-3.0),
+        g.Effects(
+            asymmetry=(0.3, -37.0),
+            position_force=g.PositionSeries.fourier([2.5e-3], 2, [0.1, 0.2, 0.3, 0.4]),
+            position_friction=g.PositionSeries.legendre(-0.1, 0.1, [0.0, 1.0, -0.5]),
+            heating=g.Heating(30.0, -5.0, 0.0),
+            drift=g.Drift("exponential", 25.0, 1.0, 2.0),
+            blocks=g.MaxwellSlip([1e6, 2e5], [1.0, 2.0]),
+            compliance=g.Compliance(0.5, 40.0, 0.1),
+        ),
+        g.AxisUnits("rotary", "A"),
+        g.Covariance(("friction.sigma", "friction.stribeck.fc", "effects.asymmetry.1"), np.diag([4.0, 0.01, 1.0])),
+        {"command": "test"},
+    )
+
+
+def test_an_axis_model_with_every_effect_round_trips(tmp_path: Path) -> None:
+    m = full_axis()
+    path = g.save_model(m, tmp_path / "axis.json")
+    back = g.load_model(path)
+    assert back == m
+    u = np.full(3000, 0.5)
+    np.testing.assert_array_equal(back.simulate(1e-3, command=u).position, m.simulate(1e-3, command=u).position)
+
+
+def test_a_unit_changed_in_the_file_is_converted_and_an_unknown_one_refused(tmp_path: Path) -> None:
+    import json
+
+    m = full_axis()
+    doc = m.model_document()
+    # Same friction level written in mN m: read back in SI.
+    doc["parameters"]["friction.fc"] = {"value": 20.0e3, "unit": "mN m"}
+    (tmp_path / "a.json").write_text(json.dumps(doc))
+    assert g.load_model(tmp_path / "a.json").friction.stribeck.fc == pytest.approx(20.0)
+    doc["parameters"]["friction.fc"] = {"value": 20.0, "unit": "furlong"}
+    (tmp_path / "b.json").write_text(json.dumps(doc))
+    with pytest.raises(g.InvalidInputError, match="furlong"):
+        g.load_model(tmp_path / "b.json")
+    doc["parameters"]["friction.fc"] = {"value": 20.0, "unit": "N"}  # a linear unit on a rotary axis
+    (tmp_path / "c.json").write_text(json.dumps(doc))
+    with pytest.raises(g.InvalidInputError):
+        g.load_model(tmp_path / "c.json")
+
+
+@pytest.mark.skipif(not EMPS.exists(), reason="EMPS data not beside the repository")
+def test_the_loops_emps_result_loads_and_simulates_with_its_effects_in_feedback(tmp_path: Path) -> None:
+    kw = dict(time="t", position="qm", command="vir", gain="gtau", reference="qg")
+    est = load_axis_data(EMPS / "DATA_EMPS.mat", **kw)
+    val = load_axis_data(EMPS / "DATA_EMPS_PULSES.mat", disturbance="pulses_N", **kw)
+    res = run_loop(est, val, LoopConfig(progress=False))
+    json_path = tmp_path / "loop.json"
+    res.to_json(json_path)
+    model = g.load_model(json_path)
+    assert isinstance(model, g.AxisModel)
+    assert model.effects.names, "the accepted effects are in the model"
+    direct = res.axis_model()
+    assert model.parameters() == pytest.approx(direct.parameters(), rel=1e-12)
+    from gmsfric import presets
+    from gmsfric.loop.closedloop import initial_state
+
+    q0, v0 = initial_state(val.t, val.position)
+    sim = model.simulate(1e-3, reference=val.reference, controller=presets.emps_controller(), input_disturbance=val.disturbance,
+                         initial_position=q0, initial_velocity=v0)
+    err = 100 * np.linalg.norm(val.force - val.gain * sim.command) / np.linalg.norm(val.force)
+    assert err < 5.0, f"closed-loop force error on the pulses run {err:.2f} %"
