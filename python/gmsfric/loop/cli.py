@@ -13,6 +13,7 @@ from ..system import Cascade
 from .closedloop import closed_loop_report
 from .data import load_axis_data
 from .select import LoopConfig, run_loop
+from .simulation import add_simulation
 
 
 def register(subparsers: Any) -> None:
@@ -45,6 +46,12 @@ def register(subparsers: Any) -> None:
     cl.add_argument("--kp", metavar="K", help="cascade position gain (1/s): number or scalar name")
     cl.add_argument("--kv", metavar="K", help="cascade velocity gain (command per m/s): number or scalar name")
     cl.add_argument("--drive-limit", type=positive_float, default=None, help="symmetric drive limit (command units)")
+    sim = p.add_argument_group("simulation error (optional)")
+    sim.add_argument("--fit", choices=("inverse", "simulation"), default="inverse",
+                     help="simulation: after the inverse-model selection, refine the baseline and final models by closed-loop "
+                     "simulation error on EST (needs --reference --kp --kv); closed_loop then reports the refined models")
+    sim.add_argument("--open-loop", action="store_true",
+                     help="score both models by open-loop simulation: position from the measured command, RMSE after 20 samples (JSON open_loop)")
     declare_files(p, inputs=("est", "validate"), outputs=("json",), output_dirs=("plot",))
     p.set_defaults(func=_loop)
 
@@ -56,6 +63,8 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
     _units.check(args.force_unit, "force", rotary=rotary, name="--force-unit")
     if (args.kp is None) != (args.kv is None) or (args.kp is not None and not args.reference):
         raise DataError("the closed-loop simulation needs --reference, --kp and --kv together")
+    if args.fit == "simulation" and not (args.reference and args.kp is not None):
+        raise DataError("--fit simulation needs the closed-loop simulation: --reference, --kp and --kv")
     if args.command_col is not None and args.gain is None:
         raise DataError("--command needs --gain (a number or a scalar name in the file)")
     if args.force is not None and args.gain is not None:
@@ -70,14 +79,18 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
     base = ("inertia", "viscous", "coulomb", "offset") if args.baseline == "reference" else ("inertia", "viscous", "coulomb")
     cfg = LoopConfig(holdout_fraction=args.holdout, baseline=base, progress=run.progress)
     result = run_loop(est, val, cfg)
+    ctrl = None
     if args.reference and args.kp is not None and args.kv is not None:
         kp, kv = est_table.number(args.kp, "kp"), est_table.number(args.kv, "kv")
         lim = args.drive_limit
         ctrl = Cascade(kp, kv, -lim if lim else float("-inf"), lim if lim else float("inf"))
-        runs = {"estimation": result.split.est}
-        if val is not None:
-            runs["validation"] = result.split.val
-        result.closed_loop, result.closed_loop_runs = closed_loop_report({"baseline": result.baseline, "final": result.final}, runs, ctrl)
+        if args.fit != "simulation":
+            runs = {"estimation": result.split.est}
+            if val is not None:
+                runs["validation"] = result.split.val
+            result.closed_loop, result.closed_loop_runs = closed_loop_report({"baseline": result.baseline, "final": result.final}, runs, ctrl)
+    if args.fit == "simulation" or args.open_loop:
+        result = add_simulation(result, ctrl, fit=args.fit == "simulation", open_loop=args.open_loop, progress=run.progress)
     print(result.table())
     columns = {"time": args.time, "position": args.position, "force": args.force, "command": args.command_col, "reference": args.reference,
                "disturbance": args.disturbance}
