@@ -683,7 +683,7 @@ def fit_output_error(
             diagnostics.append({"code": "at_bound", "parameter": c.path, "message": f"{c.path} ended on a bound ({val:.6g}): the optimum may lie beyond it"})
         if not np.isfinite(std):
             diagnostics.append({"code": "undetermined", "parameter": c.path, "message": f"{c.path} is not determined by this run (singular Jacobian)"})
-        elif fp.relative_std > 1:
+        elif fp.relative_std > 1 and not on_bound:
             diagnostics.append({"code": "large_std", "parameter": c.path, "message": f"{c.path}: standard error {std:.3g} exceeds its value {val:.3g} (> 100 %)"})
     converged = bool(sol.status > 0)
     if not converged:

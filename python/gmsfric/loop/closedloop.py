@@ -38,6 +38,18 @@ def initial_state(t: np.ndarray, q: np.ndarray, n: int = INITIAL_SAMPLES) -> tup
     return float(q[0]), float(c[1])
 
 
+def drive_limited(controller: PID | Cascade) -> tuple[PID | Cascade, tuple[float, float] | None]:
+    """A cascade's output limits as the drive's: ``(unlimited cascade, (low, high))``.
+
+    The limit of a measured axis is the drive's, and an input disturbance (EMPS's pulses) is
+    added to the controller output *before* it: limiting the controller output first would clip
+    ``-15 V + 5 V`` to ``-5 V`` instead of ``-10 V``. A PID keeps its limits (its anti-windup
+    depends on them)."""
+    if isinstance(controller, Cascade) and (np.isfinite(controller.u_min) or np.isfinite(controller.u_max)):
+        return Cascade(controller.kp, controller.kv), (controller.u_min, controller.u_max)
+    return controller, None
+
+
 def simulate_model(model: LinearModel, sig: Signals, controller: PID | Cascade, est: Signals | None = None) -> tuple[ClosedLoopResult, dict[str, float]]:
     """Simulate ``model`` in closed loop on the run of ``sig`` and compare with the measurement.
 
@@ -58,7 +70,8 @@ def simulate_model(model: LinearModel, sig: Signals, controller: PID | Cascade, 
     gain = d.gain if d.gain is not None else 1.0
     axis = to_axis_model(model, est if est is not None else sig, gain=gain)
     q0, v0 = initial_state(d.t, d.position)
-    res = axis.simulate(sig.dt, reference=d.reference, controller=controller, input_disturbance=d.disturbance,
+    ctrl, limit = drive_limited(controller)
+    res = axis.simulate(sig.dt, reference=d.reference, controller=ctrl, input_disturbance=d.disturbance, drive_limit=limit,
                         initial_position=q0, initial_velocity=v0)
     assert res.position is not None and res.command is not None
     v_m, a_m = _derivatives(d.position, sig)

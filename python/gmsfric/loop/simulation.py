@@ -25,7 +25,7 @@ from ..errors import InvalidInputError
 from ..output_error import OutputErrorResult, default_parameters, fit_output_error
 from ..system import PID, Cascade, ClosedLoopResult
 from .axis_model import to_axis_model
-from .closedloop import _derivatives, initial_state
+from .closedloop import _derivatives, drive_limited, initial_state
 from .data import AxisData
 from .idim import Signals, relative_error
 from .results import LoopResult
@@ -70,7 +70,8 @@ def simulate_closed(axis: AxisModel, sig: Signals, controller: PID | Cascade) ->
         raise InvalidInputError(f"{d.source}: a closed-loop simulation needs a reference column")
     gain = d.gain if d.gain is not None else 1.0
     q0, v0 = initial_state(d.t, d.position)
-    res = axis.simulate(sig.dt, reference=d.reference, controller=controller, input_disturbance=d.disturbance,
+    ctrl, limit = drive_limited(controller)
+    res = axis.simulate(sig.dt, reference=d.reference, controller=ctrl, input_disturbance=d.disturbance, drive_limit=limit,
                         initial_position=q0, initial_velocity=v0, record=("position", "command"))
     assert res.position is not None and res.command is not None
     v_m, a_m = _derivatives(d.position, sig)
@@ -85,7 +86,8 @@ def simulate_closed(axis: AxisModel, sig: Signals, controller: PID | Cascade) ->
 
 def refine_closed_loop(axis: AxisModel, sig: Signals, controller: PID | Cascade, *, progress: bool | None = None, **options: Any) -> OutputErrorResult:
     """Closed-loop output-error fit of ``axis`` on the run of ``sig``: the reference through
-    ``controller`` with the run's input disturbance; position and command compared (equal say,
+    ``controller`` with the run's input disturbance (a cascade's limits act on the drive, after
+    the disturbance: :func:`~gmsfric.loop.closedloop.drive_limited`); position and command compared (equal say,
     see :func:`~gmsfric.output_error.fit_output_error`). The free parameters are
     :func:`~gmsfric.output_error.default_parameters` (inertia, delay, friction levels, every
     present effect's); ``options`` go to the fit."""
@@ -93,8 +95,9 @@ def refine_closed_loop(axis: AxisModel, sig: Signals, controller: PID | Cascade,
     if d.reference is None:
         raise InvalidInputError(f"{d.source}: a closed-loop fit needs a reference column")
     options.setdefault("parameters", default_parameters(axis))
-    return fit_output_error(axis, sig.dt, d.position, reference=d.reference, controller=controller, measured_command=_command(d, axis),
-                            input_disturbance=d.disturbance, progress=progress, **options)
+    ctrl, limit = drive_limited(controller)
+    return fit_output_error(axis, sig.dt, d.position, reference=d.reference, controller=ctrl, measured_command=_command(d, axis),
+                            input_disturbance=d.disturbance, drive_limit=limit, progress=progress, **options)
 
 
 @dataclass
