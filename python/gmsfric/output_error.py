@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any, Literal, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares  # type: ignore[import-untyped, unused-ignore]
 
 from . import units as _units
 from ._progress import Progress
@@ -511,7 +511,7 @@ def fit_output_error(
             raise InvalidInputError("a closed-loop fit needs the `reference`")
         if u is not None or f is not None:
             raise InvalidInputError("in closed loop the controller makes the command: give `measured_command` (an output), not `command` or `force`")
-        feedforward = None
+        feedforward: NDArray[np.float64] | None = None
     else:
         if r is not None or um is not None or dist is not None:
             raise InvalidInputError("`reference`, `measured_command` and `input_disturbance` need a `controller` (closed loop)")
@@ -519,7 +519,7 @@ def fit_output_error(
             raise InvalidInputError("an open-loop fit needs exactly one input: `command` or `force`")
         if f is not None and "plant.force_gain" in paths:
             raise InvalidInputError("`plant.force_gain` cannot be fitted from a force input (only force / mass matters)")
-        feedforward = u if u is not None else f / model.plant.force_gain  # type: ignore[operator]
+        feedforward = u if u is not None else np.asarray(f, dtype=np.float64) / model.plant.force_gain
     w = {"position": 1.0, "command": 1.0}
     for k, v in (weights or {}).items():
         if k not in CHANNELS:
@@ -544,7 +544,7 @@ def fit_output_error(
     q0 = q0 if initial_position is None else finite("initial_position", initial_position)
     v0 = v0 if initial_velocity is None else finite("initial_velocity", initial_velocity)
     run: dict[str, Any] = dict(initial_position=q0, initial_velocity=v0, drive_limit=drive_limit, record=tuple(channels), threads=threads, progress=False)
-    inputs = {"input_disturbance": dist} if closed else {"feedforward": feedforward}
+    inputs: dict[str, NDArray[np.float64] | None] = {"input_disturbance": dist} if closed else {"feedforward": feedforward}
     horizon = {"stop": n}
 
     sims = {"n": 0}
@@ -553,7 +553,7 @@ def fit_output_error(
     def simulate(models: list[AxisModel]) -> dict[str, NDArray[np.float64]]:
         stop = horizon["stop"]
         arrays = {k: v[:stop] for k, v in inputs.items() if v is not None}
-        out = simulate_batch(models, None, controller, None if r is None else r[:stop], dt, **run, **arrays)
+        out = simulate_batch(models, None, controller, None if r is None else r[:stop], dt, **run, **arrays)  # type: ignore[arg-type]
         sims["n"] += len(models)
         bar.update(len(models))
         return {c: getattr(out, c)[:, skip:] for c in channels}
@@ -673,18 +673,18 @@ def fit_output_error(
     drive = _units.drive_base(model.units.command, name="units.command")
     fitted_params = []
     diagnostics: list[dict[str, Any]] = []
-    for i, (c, v) in enumerate(zip(coords, sol.x)):
-        val = c.to_p(float(v))
+    for i, (co, xv) in enumerate(zip(coords, sol.x)):
+        val = co.to_p(float(xv))
         std = float(math.sqrt(cov_p[i, i])) if np.isfinite(cov_p[i, i]) and cov_p[i, i] >= 0 else math.inf
         on_bound = bool(sol.active_mask[i] != 0)
-        fp = FittedParameter(c.path, c.start, val, std, c.lower, c.upper, c.log, _units.si_unit(parameter_quantity(c.path), rot, drive=drive), on_bound)
+        fp = FittedParameter(co.path, co.start, val, std, co.lower, co.upper, co.log, _units.si_unit(parameter_quantity(co.path), rot, drive=drive), on_bound)
         fitted_params.append(fp)
         if on_bound:
-            diagnostics.append({"code": "at_bound", "parameter": c.path, "message": f"{c.path} ended on a bound ({val:.6g}): the optimum may lie beyond it"})
+            diagnostics.append({"code": "at_bound", "parameter": co.path, "message": f"{co.path} ended on a bound ({val:.6g}): the optimum may lie beyond it"})
         if not np.isfinite(std):
-            diagnostics.append({"code": "undetermined", "parameter": c.path, "message": f"{c.path} is not determined by this run (singular Jacobian)"})
+            diagnostics.append({"code": "undetermined", "parameter": co.path, "message": f"{co.path} is not determined by this run (singular Jacobian)"})
         elif fp.relative_std > 1 and not on_bound:
-            diagnostics.append({"code": "large_std", "parameter": c.path, "message": f"{c.path}: standard error {std:.3g} exceeds its value {val:.3g} (> 100 %)"})
+            diagnostics.append({"code": "large_std", "parameter": co.path, "message": f"{co.path}: standard error {std:.3g} exceeds its value {val:.3g} (> 100 %)"})
     converged = bool(sol.status > 0)
     if not converged:
         diagnostics.append({"code": "not_converged", "message": f"least_squares stopped without converging: {sol.message}"})
@@ -712,6 +712,6 @@ def fit_output_error(
     return OutputErrorResult(
         model=fitted, start=model, parameters=fitted_params, mode="closed_loop" if closed else "open_loop", channels=ch_info,
         converged=converged, message=str(sol.message), n_simulations=sims["n"], nfev=nfev, njev=njev,
-        t=(np.arange(n) * dt)[skip:], measured={c: measured[c][skip:] for c in channels}, simulated_start={c: start_out[c][0] for c in channels},
+        t=np.asarray((np.arange(n) * dt)[skip:], dtype=np.float64), measured={c: measured[c][skip:] for c in channels}, simulated_start={c: start_out[c][0] for c in channels},
         simulated=final_out, provenance={"fit": fit}, diagnostics=diagnostics,
     )

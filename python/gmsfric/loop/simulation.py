@@ -150,8 +150,8 @@ class SimulationLoopResult(LoopResult):
             unit = "mm" if not self.rotary else "mrad"
             lines.append(f"open-loop simulation RMSE (position from the measured command, after {OPEN_LOOP_SKIP} samples), {unit}: estimation / validation")
             for name, d in self.open_loop.items():
-                v = d["validation_rmse_m"]
-                lines.append(f"  {name:<9}{1e3 * d['estimation_rmse_m']:.3f} / {'-' if v is None else format(1e3 * v, '.3f')}")
+                shown = ["-" if v is None else format(1e3 * v, ".3f") for v in (d["estimation_rmse_m"], d["validation_rmse_m"])]
+                lines.append(f"  {name:<9}{shown[0]} / {shown[1]}")
         return "\n".join(lines)
 
     def plot(self) -> dict[str, "Figure"]:
@@ -180,7 +180,7 @@ def plot_open_loop(runs: dict[tuple[str, str], tuple[AxisData, ClosedLoopResult]
     for j, rn in enumerate(names):
         shown = False
         for (m, r), (data, res) in runs.items():
-            if r != rn:
+            if r != rn or res.position is None:
                 continue
             if not shown:
                 axes[0, j].plot(data.t, k * data.position, "k", lw=0.8, label="measured")
