@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
+from ..axis import AxisModel
 from ..errors import InvalidInputError
 from ..system import PID, Cascade, ClosedLoopResult
 from .axis_model import to_axis_model
@@ -64,15 +65,22 @@ def simulate_model(model: LinearModel, sig: Signals, controller: PID | Cascade, 
         Relative errors (%) ``position``, ``velocity``, ``acceleration`` (both signals
         filtered and differentiated the same way) and ``force``.
     """
+    gain = sig.data.gain if sig.data.gain is not None else 1.0
+    return simulate_axis(to_axis_model(model, est if est is not None else sig, gain=gain), sig, controller)
+
+
+def simulate_axis(axis: AxisModel, sig: Signals, controller: PID | Cascade) -> tuple[ClosedLoopResult, dict[str, float]]:
+    """Simulate ``axis`` in closed loop on the run of ``sig`` (its reference and input
+    disturbance; a cascade's limits on the drive, :func:`drive_limited`), from the measured
+    initial state, and compare with the measurement: errors as :func:`simulate_model`."""
     d = sig.data
     if d.reference is None:
         raise InvalidInputError(f"{d.source}: a closed-loop simulation needs a reference column")
     gain = d.gain if d.gain is not None else 1.0
-    axis = to_axis_model(model, est if est is not None else sig, gain=gain)
     q0, v0 = initial_state(d.t, d.position)
     ctrl, limit = drive_limited(controller)
     res = axis.simulate(sig.dt, reference=d.reference, controller=ctrl, input_disturbance=d.disturbance, drive_limit=limit,
-                        initial_position=q0, initial_velocity=v0)
+                        initial_position=q0, initial_velocity=v0, record=("position", "command"))
     assert res.position is not None and res.command is not None
     v_m, a_m = _derivatives(d.position, sig)
     v_s, a_s = _derivatives(res.position, sig)

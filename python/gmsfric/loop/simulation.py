@@ -25,15 +25,15 @@ from ..errors import InvalidInputError
 from ..output_error import OutputErrorResult, default_parameters, fit_output_error
 from ..system import PID, Cascade, ClosedLoopResult
 from .axis_model import to_axis_model
-from .closedloop import _derivatives, drive_limited, initial_state
+from .closedloop import drive_limited, initial_state, simulate_axis
 from .data import AxisData
-from .idim import Signals, relative_error
+from .idim import Signals
 from .results import LoopResult
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-__all__ = ["OPEN_LOOP_SKIP", "open_loop_rmse", "simulate_closed", "refine_closed_loop", "add_simulation", "SimulationLoopResult"]
+__all__ = ["OPEN_LOOP_SKIP", "open_loop_rmse", "simulate_open", "refine_closed_loop", "add_simulation", "SimulationLoopResult"]
 
 #: Samples left out at the start of the open-loop score (the benchmark's protocol).
 OPEN_LOOP_SKIP = 20
@@ -59,29 +59,6 @@ def open_loop_rmse(axis: AxisModel, data: AxisData, skip: int = OPEN_LOOP_SKIP) 
 def _rmse(res: ClosedLoopResult, data: AxisData, skip: int = OPEN_LOOP_SKIP) -> float:
     assert res.position is not None
     return float(np.sqrt(np.mean((res.position - data.position)[skip:] ** 2)))
-
-
-def simulate_closed(axis: AxisModel, sig: Signals, controller: PID | Cascade) -> tuple[ClosedLoopResult, dict[str, float]]:
-    """``axis`` in closed loop on the run of ``sig`` (its reference and input disturbance) and
-    the relative errors (%) of position, velocity, acceleration and force, as
-    :func:`gmsfric.loop.simulate_model` reports them for an inverse model."""
-    d = sig.data
-    if d.reference is None:
-        raise InvalidInputError(f"{d.source}: a closed-loop simulation needs a reference column")
-    gain = d.gain if d.gain is not None else 1.0
-    q0, v0 = initial_state(d.t, d.position)
-    ctrl, limit = drive_limited(controller)
-    res = axis.simulate(sig.dt, reference=d.reference, controller=ctrl, input_disturbance=d.disturbance, drive_limit=limit,
-                        initial_position=q0, initial_velocity=v0, record=("position", "command"))
-    assert res.position is not None and res.command is not None
-    v_m, a_m = _derivatives(d.position, sig)
-    v_s, a_s = _derivatives(res.position, sig)
-    return res, {
-        "position_pct": relative_error(d.position, res.position),
-        "velocity_pct": relative_error(v_m, v_s),
-        "acceleration_pct": relative_error(a_m, a_s),
-        "force_pct": relative_error(d.force, gain * res.command),
-    }
 
 
 def refine_closed_loop(axis: AxisModel, sig: Signals, controller: PID | Cascade, *, progress: bool | None = None, **options: Any) -> OutputErrorResult:
@@ -241,7 +218,7 @@ def add_simulation(result: LoopResult, controller: PID | Cascade | None, *, fit:
             for rname, s in runs.items():
                 if s.data.reference is None:
                     continue
-                res, err = simulate_closed(axis, s, controller)
+                res, err = simulate_axis(axis, s, controller)
                 out.closed_loop[name][rname] = {k: round(v, 4) for k, v in err.items()}
                 out.closed_loop_runs[(name, rname)] = res
     if open_loop:
