@@ -14,7 +14,7 @@ from .model_io import load_model, save_model
 from .system import PID, PIDDOB, Cascade, ClosedLoopResult, Plant, RunOptions, simulate_closed_loop
 
 # Subpackages load on first use (they pull in scipy): ``gmsfric.identify.fit_static_map(...)``.
-_SUBMODULES = ("identify", "loop", "glitch", "batch", "presets", "io", "plotting", "demo", "units", "results", "model_io", "curves")
+_SUBMODULES = ("identify", "loop", "glitch", "batch", "presets", "io", "plotting", "demo", "units", "results", "model_io", "curves", "output_error")
 
 
 def __getattr__(name: str) -> object:
