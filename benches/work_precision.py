@@ -31,7 +31,7 @@ Methods (each converges to that system):
 Reference: gmsfric at dt = 5e-8 s; cross-checked against gmsfric at 1e-7 (step convergence) and
 against Radau at rtol 1e-10 on the first 60 ms, which contain the first reversal (the
 regularisation's own error shows there).  Error: max |x - x_ref| over the samples every 1e-4 s
-(m), also as a fraction of the max tracking error.  The table at the end interpolates each
+(every dt when coarser; m), also as a fraction of the max tracking error.  The table at the end interpolates each
 method's time at equal error (log-log) and prints gmsfric's time ratio.
 """
 
@@ -75,7 +75,7 @@ def run_gmsfric(dt: float, t_end: float = T_END) -> tuple[np.ndarray, np.ndarray
     n = int(round(t_end / dt)) + 1
     t = np.arange(n) * dt
     res = g.simulate_closed_loop(plant, gms, pid, reference(t), dt)
-    stride = int(round(SAMPLE / dt))
+    stride = max(1, int(round(SAMPLE / dt)))
     return res.position[::stride], t[::stride]
 
 
@@ -139,7 +139,7 @@ def run_numba(fn, dt: float, along_only: bool = True) -> np.ndarray:
     n = int(round(T_END / dt)) + 1
     phi = np.array([[1.0, dt], [0.0, 1.0]])
     gam = np.array([dt * dt / (2 * MASS), dt / MASS])
-    stride = int(round(SAMPLE / dt))
+    stride = max(1, int(round(SAMPLE / dt)))
     out = fn(n, dt, phi, gam, KP, KI, KD, TF, AMP, FREQ, ALPHA, K_BLOCK, C_SLIP, FC, FS, VS, SIGMA, MASS, stride, along_only)
     return out[: (n - 1) // stride + 1]
 
@@ -234,11 +234,15 @@ def main(argv: list[str] | None = None) -> int:
     rows: dict[str, list[tuple[str, float, float]]] = {"gmsfric": [], "numba explicit": [], "solve_ivp Radau": [], "solve_ivp LSODA": []}
 
     def err(x: np.ndarray) -> float:
-        m = min(x.size, ref.size)
-        d = np.abs(x[:m] - ref[:m])
-        return float(np.max(d)) if np.all(np.isfinite(x[:m])) else float("inf")
+        # x holds samples every max(dt, SAMPLE): compare with the reference at those times
+        every = max(1, int(round((ref.size - 1) / max(x.size - 1, 1))))
+        r = ref[::every]
+        m = min(x.size, r.size)
+        d = np.abs(x[:m] - r[:m])
+        # an unstable run (explicit coupling beyond its step limit) counts as failed
+        return float(np.max(d)) if np.all(np.isfinite(x[:m])) and np.max(d) < 1.0 else float("inf")
 
-    g_steps = [1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6] if args.quick else [1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6, 5e-7]
+    g_steps = [5e-4, 1e-4, 2e-5, 5e-6, 1e-6] if args.quick else [5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6, 5e-7]
     for dt in g_steps:
         try:
             (x, _), secs = timed(lambda: run_gmsfric(dt), args.repeats)
@@ -248,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         fn = make_numba_explicit()
         fn(10, 1e-5, np.eye(2), np.zeros(2), KP, KI, KD, TF, AMP, FREQ, ALPHA, K_BLOCK, C_SLIP, FC, FS, VS, SIGMA, MASS, 1, True)
-        n_steps = [1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6] if args.quick else [1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6, 5e-7, 2e-7, 1e-7]
+        n_steps = [5e-4, 1e-4, 2e-5, 5e-6, 1e-6] if args.quick else [5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6, 5e-7, 2e-7, 1e-7]
         for dt in n_steps:
             with np.errstate(all="ignore"):
                 x, secs = timed(lambda: run_numba(fn, dt), args.repeats)
