@@ -210,6 +210,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"Straightforward numba vs gmsfric (same algorithm): max |diff| of the error = {d2:.3g} m")
     print(f"Building the reference with numpy ({n:.0e} samples) takes {ref_wall:.3f} s (best of 3) = {ref_wall / n * 1e9:.1f} ns/step "
           "(outside gmsfric's timing; numba_axis.py computes its sine inside the loop).")
+    touch = min(timed(lambda: np.ones(n))[1] for _ in range(3))
+    print(f"Fresh memory: allocating and writing one {n:.0e}-sample float64 array takes {touch:.3f} s (best of 3) = "
+          f"{touch / n * 1e9:.1f} ns/step per recorded output (page faults; every implementation pays it per output array).")
     gw, bw = statistics.median(wall[gname]), statistics.median(wall["numba_axis.py run (competent user)"])
     print(f"RATIO gmsfric / numba_axis.py, median wall: {bw / gw:.2f}x; including the reference build: {bw / (gw + ref_wall):.2f}x")
     return 0
