@@ -179,8 +179,10 @@ fn lanes_case<const L: usize>(n: usize, reps: usize) {
     let mut singles: Vec<Bufs> = (0..L).map(|_| Bufs::new(n)).collect();
     let mut v3b = Bufs::new(n);
     let (mut lpos, mut lvel, mut lcmd, mut lfric) = (vec![1.0; L * n], vec![1.0; L * n], vec![1.0; L * n], vec![1.0; L * n]);
-    let names = ["core, one run at a time", "v3 (short exp), one run at a time", "lanes (AVX2 via target-cpu/dispatch)"];
-    let mut t: Vec<Vec<f64>> = vec![Vec::new(); 3];
+    let names = ["core, one run at a time", "v3 (short exp), one run at a time", "lanes (AVX2 via target-cpu/dispatch)", "in groups of 4 lanes"];
+    let mut t: Vec<Vec<f64>> = vec![Vec::new(); 4];
+    let groups: Vec<LaneParams<4, 4>> = gms.chunks(4).map(|c| LaneParams::new(&pids[..c.len()], c)).collect();
+    let (mut gpos, mut gvel, mut gcmd, mut gfric) = (vec![1.0; 4 * n], vec![1.0; 4 * n], vec![1.0; 4 * n], vec![1.0; 4 * n]);
     for _ in 0..reps {
         let t0 = Instant::now();
         for (l, b) in singles.iter_mut().enumerate() {
@@ -207,6 +209,12 @@ fn lanes_case<const L: usize>(n: usize, reps: usize) {
             run_lanes::<L, 4, NATIVE_FMA>(&ax, &lp, &r, out).unwrap();
         }
         t[2].push(t0.elapsed().as_secs_f64());
+        let t0 = Instant::now();
+        for gp in &groups {
+            let out = LaneOut { pos: &mut gpos, vel: &mut gvel, cmd: &mut gcmd, fric: &mut gfric };
+            dispatch::lanes4_n4(&ax, gp, &r, out).unwrap();
+        }
+        t[3].push(t0.elapsed().as_secs_f64());
     }
     let total = (L * n) as f64;
     let core_med = median(&mut t[0].clone());
@@ -255,7 +263,9 @@ fn dispatch_case(n: usize, reps: usize) {
             }
         }
     }
-    println!("dispatcher takes the {} path on this CPU; this build: target fma = {}", if dispatch::has_avx2_fma() { "avx2+fma" } else { "baseline" }, NATIVE_FMA);
+    // A checksum of the dispatched run's bits, to compare builds (portable vs native) by eye.
+    let digest = pos[1].iter().fold(0u64, |h, x| h.rotate_left(5) ^ x.to_bits());
+    println!("dispatcher takes the {} path on this CPU; this build: target fma = {}; bits digest of the dispatched run {digest:016x}", if dispatch::has_avx2_fma() { "avx2+fma" } else { "baseline" }, NATIVE_FMA);
     for (i, name) in names.iter().enumerate() {
         let med = median(&mut t[i].clone());
         let same_as_dispatched = pos[i] == pos[1];

@@ -320,7 +320,9 @@ pub fn run_v3<const NP: usize, const F: bool, const FAST: bool>(ax: &Axis, pid: 
             let inv = ds.inv[di];
             let dx = trial * inv;
             let v = dx * inv_dt;
-            let p = trial.abs() * ds.pc[di];
+            // |trial| times the direction's factor without waiting for the direction: both
+            // products in parallel, then one max (trial*pc0 >= 0 >= -trial*pc1 iff trial >= 0).
+            let p = (trial * ds.pc[0]).max(-trial * ds.pc[1]);
             let e_str = if p > g.p_cut {
                 0.0
             } else if FAST {
