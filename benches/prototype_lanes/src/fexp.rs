@@ -60,8 +60,19 @@ impl ExpTable {
     /// `exp(-p)` for `0 <= p <= 700`.
     #[inline(always)]
     pub fn exp_neg<const F: bool>(&self, p: f64) -> f64 {
-        let x = -p;
-        let kd = fma::<F>(x, INV_LN2_N, SHIFT);
+        self.exp_neg_kd::<F>(fma::<F>(-p, INV_LN2_N, SHIFT), -p)
+    }
+
+    /// The rounding constant `kd` for `exp(-p)` with `p = a * q`: lets a caller fold the factor
+    /// `q` into the first multiply-add of the exponential (one operation less on its chain).
+    #[inline(always)]
+    pub fn kd_for<const F: bool>(a: f64, q: f64) -> f64 {
+        fma::<F>(a, -q * INV_LN2_N, SHIFT)
+    }
+
+    /// `exp(x)` for `-700 <= x <= 0` from `kd = x N/ln2 + SHIFT` (rounded).
+    #[inline(always)]
+    pub fn exp_neg_kd<const F: bool>(&self, kd: f64, x: f64) -> f64 {
         let ki = kd.to_bits();
         let kd = kd - SHIFT;
         // r = x - kd ln2/N. With FMA the remainder term is below 1e-14 |r| and joins the

@@ -286,6 +286,8 @@ pub fn run_v3<const NP: usize, const F: bool, const FAST: bool>(ax: &Axis, pid: 
     let a1_sigma = a1 * g.sigma;
     let mut ds = dir_sums(&m, &k, &a, ax.gf0, sig_inv_dt, pc_scale);
     let mut fs = [0.0f64; 4];
+    // Beyond 700 the table exponential's scale would underflow: E = 0 there (s = fc to rounding).
+    let p_cut = g.p_cut.min(700.0);
     // Step 0's residual the core's way (the delayed inputs are still zero).
     let mut trial = {
         let free_p = fma::<F>(ax.p00, xp, fma::<F>(ax.p01, xv, 0.0));
@@ -323,10 +325,13 @@ pub fn run_v3<const NP: usize, const F: bool, const FAST: bool>(ax: &Axis, pid: 
             // |trial| times the direction's factor without waiting for the direction: both
             // products in parallel, then one max (trial*pc0 >= 0 >= -trial*pc1 iff trial >= 0).
             let p = (trial * ds.pc[0]).max(-trial * ds.pc[1]);
-            let e_str = if p > g.p_cut {
+            let e_str = if p > p_cut {
                 0.0
             } else if FAST {
-                table.exp_neg::<F>(p.min(700.0))
+                // The exponential's first step straight from `trial` for both directions, then
+                // a select: the multiply that forms `p` leaves the chain.
+                let kd = if trial >= 0.0 { ExpTable::kd_for::<F>(trial, ds.pc[0]) } else { ExpTable::kd_for::<F>(-trial, ds.pc[1]) };
+                table.exp_neg_kd::<F>(kd, -p)
             } else {
                 (-p).exp()
             };
