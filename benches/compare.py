@@ -3,11 +3,14 @@
     python benches/compare.py                 # full run (10^7 closed-loop steps; ~2-4 min)
     python benches/compare.py --steps 1000000 # quicker
 
-Task A (the headline): the paper's closed-loop axis -- plant a/(s^2+bs+c) with a 1.29 ms input
+The headline comparison, against the numba loop a competent user writes (``numba_axis.py``), is
+``benches/numba_baseline.py``.  This script compares implementations of gmsfric's own algorithm.
+
+Task A: the paper's closed-loop axis -- plant a/(s^2+bs+c) with a 1.29 ms input
 delay (exact ZOH, fractional delay), PID with filtered derivative and anti-windup, 4-block GMS
 coupled linearly-implicitly -- dt = 1e-4 s, reference 0.2 mm 0.5 Hz sine (no drive saturation).
 Two numba versions implement the core's algorithm: "straightforward" is written as the equations
-read (what a user would write; the issue's baseline), "hand-mirrored" copies the core's operation
+read (a transliteration of gmsfric's algorithm), "hand-mirrored" copies the core's operation
 order and caches. Both use the discretisation from ``_gmsfric.discretize_plant``; the script
 prints the max abs difference of the trajectories (rounding level: the core fuses multiply-adds
 and multiplies by reciprocals).
