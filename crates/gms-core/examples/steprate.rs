@@ -1,5 +1,6 @@
 //! Core step rate of the closed loop with pre-touched output buffers (compute only, no page
-//! faults), thread CPU time: `cargo run --release -p gms-core --example steprate [steps] [blocks]`.
+//! faults), thread CPU time: `cargo run --release -p gms-core --example steprate [steps] [blocks] [amplitude] [freq]`
+//! (default: 0.2 mm, 0.5 Hz sine; `numba_axis.py`'s task is `10000000 4 0.01 0.01`).
 //!
 //! Rows: no friction; GMS through the generic loop (`simulate_generic_into`); GMS through the
 //! run entry (`simulate_into`: the latency-optimised kernel of `gms_core::fast`), all outputs and
@@ -26,7 +27,9 @@ fn main() {
     let dt = 1e-4;
     let n: usize = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(10_000_000);
     let blocks: usize = std::env::args().nth(2).and_then(|s| s.parse().ok()).unwrap_or(4);
-    let r: Vec<f64> = (0..n).map(|k| 2e-4 * (2.0 * std::f64::consts::PI * 0.5 * k as f64 * dt).sin()).collect();
+    let amp: f64 = std::env::args().nth(3).and_then(|s| s.parse().ok()).unwrap_or(2e-4);
+    let freq: f64 = std::env::args().nth(4).and_then(|s| s.parse().ok()).unwrap_or(0.5);
+    let r: Vec<f64> = (0..n).map(|k| amp * (2.0 * std::f64::consts::PI * freq * k as f64 * dt).sin()).collect();
     let plant = reference::paper_plant();
     let input = ClosedLoopInput::new(&r, dt);
     let mut out = ClosedLoopOutput::zeros(n);

@@ -58,7 +58,7 @@ pub struct StribeckTable {
     p_top: f64,
     jmax: usize,
     /// `rows[j][i] = [s_i, w_i, d_i, flag]`: monomial coefficients of degree `i`; `rows[j][0][3]`
-    /// is NaN until the row is built.
+    /// is NaN until the row is built. Row `jmax + 1` holds the constants beyond `p_top`.
     rows: Vec<[[f64; 4]; 8]>,
     /// `(s, w, d)` beyond `p_top`.
     beyond: [f64; 3],
@@ -77,10 +77,12 @@ impl StribeckTable {
         }
         let d_fc = (-(g.c / st.fc) * dt).exp();
         let jmax = if p_top >= 0.0 { (p_top * INV_H).ceil() as usize } else { 0 };
-        let mut rows = vec![[[0.0; 4]; 8]; jmax + 1];
+        // Rows 0..=jmax on demand; row jmax + 1: the constants beyond the cut-off.
+        let mut rows = vec![[[0.0; 4]; 8]; jmax + 2];
         for r in rows.iter_mut() {
             r[0][3] = f64::NAN;
         }
+        rows[jmax + 1][0] = [st.fc, st.fc * (1.0 - d_fc), d_fc, 0.0];
         Some(Self { fc: st.fc, dip: st.fs - st.fc, c: g.c, dt, p_top, jmax, rows, beyond: [st.fc, st.fc * (1.0 - d_fc), d_fc] })
     }
 
@@ -364,13 +366,26 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller>(
         free_p - xp
     };
     let (mut next_record, mut j_out) = (0usize, 0usize);
-    let mut start = 0;
-    while start < n {
-        if input.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            return Err(CoreError::Interrupted);
-        }
-        let end = (start + CANCEL_CHECK_STEPS).min(n);
-        for kk in start..end {
+    // Slip regime: every block slips along `slip_dir`. Then each block follows
+    // `f_i' = d f_i + a_i dir w`, so the blocks are `f_i = a_i acc_a + f0_i acc_b` and their sum
+    // one scalar: the step needs no block arrays (they are rebuilt when the regime ends).
+    let asum: f64 = a.iter().sum();
+    let (mut slip, mut slip_dir, mut slip_sum, mut acc_a, mut acc_b) = (false, 0.0f64, 0.0f64, 0.0f64, 1.0f64);
+    let mut f0 = f;
+    // The last step's free motion and force (the slip regime forms the next residual from them).
+    let (mut lf_p, mut lf_v, mut lf_f) = (0.0f64, 0.0f64, 0.0f64);
+    let c_p = fma(p00, gf0, p01 * gf1);
+    let c_v = fma(p10, gf0, p11 * gf1);
+    let c_q = fma(pm1, c_p, p01 * c_v);
+    #[inline(always)]
+    fn ring_at(ring: &[f64], kk: usize, delay: usize, mask: usize) -> (f64, f64, f64) {
+        // SAFETY: indices are masked to the ring's power-of-two length.
+        unsafe { (*ring.get_unchecked(kk.wrapping_sub(delay + 1) & mask), *ring.get_unchecked(kk.wrapping_sub(delay) & mask), *ring.get_unchecked((kk + 1).wrapping_sub(delay) & mask)) }
+    }
+    let ring_at = |ring: &[f64], kk: usize| ring_at(ring, kk, delay, mask);
+    macro_rules! prologue {
+        ($kk:ident, $r:ident, $y:ident, $u:ident, $free_p:ident, $free_v:ident, $q:ident) => {
+            let kk = $kk;
             let (r, y, u);
             if PLAIN {
                 r = plain_ref[kk];
@@ -411,6 +426,135 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller>(
             if !PLAIN && load.is_some() {
                 q -= gf0 * load_at(kk + 1);
             }
+            let ($r, $y, $u, $free_p, $free_v, $q) = (r, y, u, free_p, free_v, q);
+        };
+    }
+    macro_rules! epilogue {
+        ($kk:ident, $r:ident, $y:ident, $u:ident, $free_p:ident, $free_v:ident, $force:ident) => {
+            let (kk, r, y, u, free_p, free_v, force) = ($kk, $r, $y, $u, $free_p, $free_v, $force);
+            if kk == next_record {
+                if let Some(o) = pos.as_deref_mut() {
+                    o[j_out] = xp;
+                }
+                if let Some(o) = vel.as_deref_mut() {
+                    o[j_out] = xv;
+                }
+                if let Some(o) = meas.as_deref_mut() {
+                    o[j_out] = y;
+                }
+                if let Some(o) = cmd.as_deref_mut() {
+                    o[j_out] = u;
+                }
+                if let Some(o) = fric.as_deref_mut() {
+                    o[j_out] = force;
+                }
+                if let Some(o) = err.as_deref_mut() {
+                    o[j_out] = r - xp;
+                }
+                j_out += 1;
+                next_record += every;
+            }
+            xp = fma(-gf0, force, free_p);
+            xv = fma(-gf1, force, free_v);
+            if !(xp + xv + force + u + y).is_finite() {
+                let quantity = if !u.is_finite() {
+                    "command"
+                } else if !y.is_finite() {
+                    "measured position"
+                } else if !force.is_finite() {
+                    "friction"
+                } else if !xv.is_finite() {
+                    "velocity"
+                } else {
+                    "position"
+                };
+                return Err(non_finite(quantity, kk, dt));
+            }
+        };
+    }
+    let mut start = 0;
+    while start < n {
+        if input.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return Err(CoreError::Interrupted);
+        }
+        let end = (start + CANCEL_CHECK_STEPS).min(n);
+        let mut kk = start;
+        while kk < end {
+            if slip {
+                let di = if slip_dir > 0.0 { 0 } else { 1 };
+                let (kq, pq, inv, sa, alpha) = (dc.kq[di], dc.pq[di], dc.inv[di], dc.sa[di], dc.alpha[di]);
+                let dir_asum = slip_dir * asum;
+                let v_per_trial = inv * inv_dt;
+                // The interval of the Stribeck table in use: its row is loaded before the index of
+                // this step is known (the index changes rarely), so the look-up leaves the chain.
+                let (mut key, mut centre) = (usize::MAX, 0.0f64);
+                while kk < end && trial * slip_dir > 0.0 {
+                    prologue!(kk, r, y, u, free_p, free_v, q_direct);
+                    let _ = q_direct;
+                    // The same residual with the last force entering through one multiply-add
+                    // (the free motion before it is known a step earlier).
+                    let (old, new, new1) = ring_at(&ring, kk);
+                    let mut fp0 = fma(p00, lf_p, fma(p01, lf_v, fma(go0, old, gn0 * new)));
+                    let mut fv0 = fma(p11, lf_v, fma(p10, lf_p, fma(go1, old, gn1 * new)));
+                    if let (false, Some(l)) = (PLAIN, load) {
+                        fp0 -= gf0 * l[kk];
+                        fv0 -= gf1 * l[kk];
+                    }
+                    let mut q0 = fma(pm1, fp0, fma(p01, fv0, fma(go0, new, gn0 * new1)));
+                    if !PLAIN && load.is_some() {
+                        q0 -= gf0 * load_at(kk + 1);
+                    }
+                    let q = fma(-c_q, lf_f, q0);
+                    let p = trial * pq;
+                    let kd = fma(trial, kq, SHIFT);
+                    let want = if p <= p_top { ((kd.to_bits() & 0xffff_ffff) as usize).min(jmax) } else { jmax + 1 };
+                    if want != key {
+                        if want <= jmax && unsafe { table.rows.get_unchecked(want) }[0][3].is_nan() && !table.build(want) {
+                            return Ok(Outcome::Fallback);
+                        }
+                        key = want;
+                        centre = if want <= jmax { -(want as f64) * H } else { -p_top };
+                    }
+                    // SAFETY: key <= jmax + 1 < rows.len().
+                    let c = unsafe { table.rows.get_unchecked(key) };
+                    let rr = fma(trial, pq, centre).min(H);
+                    let r2 = rr * rr;
+                    let r4 = r2 * r2;
+                    let wd: [f64; 2] = std::array::from_fn(|i| {
+                        let q = i + 1;
+                        let x0 = fma(c[1][q], rr, c[0][q]);
+                        let x1 = fma(c[3][q], rr, c[2][q]);
+                        let x2 = fma(c[5][q], rr, c[4][q]);
+                        let x3 = fma(c[7][q], rr, c[6][q]);
+                        fma(fma(x3, r2, x2), r4, fma(x1, r2, x0))
+                    });
+                    let (w, dcy) = (wd[0], wd[1]);
+                    let v = trial * v_per_trial;
+                    let big_a = fma(trial, sa, q);
+                    let next = fma(alpha, w, fma(-b * slip_sum, dcy, big_a));
+                    slip_sum = fma(slip_sum, dcy, dir_asum * w);
+                    acc_a = fma(acc_a, dcy, slip_dir * w);
+                    acc_b *= dcy;
+                    trial = next;
+                    let force = fma(sigma, v, slip_sum);
+                    epilogue!(kk, r, y, u, free_p, free_v, force);
+                    (lf_p, lf_v, lf_f) = (free_p, free_v, force);
+                    kk += 1;
+                }
+                if kk < end {
+                    // The motion stops or reverses: back to the block arrays.
+                    for i in 0..NP {
+                        f[i] = fma(a[i], acc_a, f0[i] * acc_b);
+                        m[i] = slip_dir;
+                    }
+                    dc = consts(&m);
+                    fs = force_sums(&f, &m);
+                    slip = false;
+                }
+            } else {
+                while kk < end {
+                    prologue!(kk, r, y, u, free_p, free_v, q);
+                    let (mut all_along, mut step_dir) = (false, 0.0f64);
             let force;
             if trial == 0.0 {
                 // At rest: every block sticks and holds its force.
@@ -487,48 +631,32 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller>(
                 }
                 fs = force_sums(&f, &m);
                 force = fr;
+                all_along = m.iter().all(|&x| x == dir);
+                step_dir = dir;
             }
-            if kk == next_record {
-                if let Some(o) = pos.as_deref_mut() {
-                    o[j_out] = xp;
+                    epilogue!(kk, r, y, u, free_p, free_v, force);
+                    (lf_p, lf_v, lf_f) = (free_p, free_v, force);
+                    kk += 1;
+                    if all_along {
+                        slip = true;
+                        slip_dir = step_dir;
+                        slip_sum = fs[2];
+                        f0 = f;
+                        (acc_a, acc_b) = (0.0, 1.0);
+                        break;
+                    }
                 }
-                if let Some(o) = vel.as_deref_mut() {
-                    o[j_out] = xv;
-                }
-                if let Some(o) = meas.as_deref_mut() {
-                    o[j_out] = y;
-                }
-                if let Some(o) = cmd.as_deref_mut() {
-                    o[j_out] = u;
-                }
-                if let Some(o) = fric.as_deref_mut() {
-                    o[j_out] = force;
-                }
-                if let Some(o) = err.as_deref_mut() {
-                    o[j_out] = r - xp;
-                }
-                j_out += 1;
-                next_record += every;
-            }
-            xp = fma(-gf0, force, free_p);
-            xv = fma(-gf1, force, free_v);
-            if !(xp + xv + force + u + y).is_finite() {
-                let quantity = if !u.is_finite() {
-                    "command"
-                } else if !y.is_finite() {
-                    "measured position"
-                } else if !force.is_finite() {
-                    "friction"
-                } else if !xv.is_finite() {
-                    "velocity"
-                } else {
-                    "position"
-                };
-                return Err(non_finite(quantity, kk, dt));
             }
         }
         start = end;
     }
+    if slip {
+        // Leave the block arrays consistent (not read after the run, kept for clarity of state).
+        for i in 0..NP {
+            f[i] = fma(a[i], acc_a, f0[i] * acc_b);
+        }
+    }
+    let _ = (&f, &m);
     Ok(Outcome::Done)
 }
 
