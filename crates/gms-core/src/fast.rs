@@ -189,7 +189,7 @@ pub(crate) fn eligible(g: &Gms, d: &DiscretePlant, n: usize) -> bool {
 }
 
 /// Run the fast kernel for `g` (reset state) under `ctrl` (prepared, begun).
-pub(crate) fn run<C: Controller>(g: &Gms, table: &mut StribeckTable, d: &DiscretePlant, ctrl: &mut C, input: &ClosedLoopInput<'_>, out: Outs<'_>) -> Result<Outcome> {
+pub(crate) fn run<C: Controller + Clone>(g: &Gms, table: &mut StribeckTable, d: &DiscretePlant, ctrl: &mut C, input: &ClosedLoopInput<'_>, out: Outs<'_>) -> Result<Outcome> {
     // A run with a reference and nothing else per sample (the common case) gets a loop
     // without the per-sample optional inputs.
     let plain = input.reference.is_some()
@@ -220,7 +220,7 @@ pub(crate) fn run<C: Controller>(g: &Gms, table: &mut StribeckTable, d: &Discret
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn kernel_avx2<const NP: usize, const PLAIN: bool, C: Controller>(
+unsafe fn kernel_avx2<const NP: usize, const PLAIN: bool, C: Controller + Clone>(
     g: &Gms,
     table: &mut StribeckTable,
     d: &DiscretePlant,
@@ -305,15 +305,18 @@ fn force_sums<const NP: usize>(f: &[f64; NP], m: &[f64; NP]) -> [f64; 3] {
 }
 
 #[inline(always)]
-fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller>(
+fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clone>(
     g: &Gms,
     table: &mut StribeckTable,
     d: &DiscretePlant,
-    ctrl: &mut C,
+    ctrl_out: &mut C,
     input: &ClosedLoopInput<'_>,
     out: Outs<'_>,
 ) -> Result<Outcome> {
     let fma = fma_if::<F>;
+    // A local copy keeps the controller's state in registers; written back at the end.
+    let mut ctrl_local = ctrl_out.clone();
+    let ctrl = &mut ctrl_local;
     let n = input.len();
     let every = out.every.max(1);
     let samples = n.div_ceil(every);
@@ -434,22 +437,28 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller>(
             let (kk, r, y, u, free_p, free_v, force) = ($kk, $r, $y, $u, $free_p, $free_v, $force);
             if kk == next_record {
                 if let Some(o) = pos.as_deref_mut() {
-                    o[j_out] = xp;
+                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
+                    unsafe { *o.get_unchecked_mut(j_out) = xp };
                 }
                 if let Some(o) = vel.as_deref_mut() {
-                    o[j_out] = xv;
+                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
+                    unsafe { *o.get_unchecked_mut(j_out) = xv };
                 }
                 if let Some(o) = meas.as_deref_mut() {
-                    o[j_out] = y;
+                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
+                    unsafe { *o.get_unchecked_mut(j_out) = y };
                 }
                 if let Some(o) = cmd.as_deref_mut() {
-                    o[j_out] = u;
+                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
+                    unsafe { *o.get_unchecked_mut(j_out) = u };
                 }
                 if let Some(o) = fric.as_deref_mut() {
-                    o[j_out] = force;
+                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
+                    unsafe { *o.get_unchecked_mut(j_out) = force };
                 }
                 if let Some(o) = err.as_deref_mut() {
-                    o[j_out] = r - xp;
+                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
+                    unsafe { *o.get_unchecked_mut(j_out) = r - xp };
                 }
                 j_out += 1;
                 next_record += every;
@@ -657,6 +666,7 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller>(
         }
     }
     let _ = (&f, &m);
+    *ctrl_out = ctrl_local;
     Ok(Outcome::Done)
 }
 

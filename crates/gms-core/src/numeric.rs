@@ -110,6 +110,11 @@ impl UnitIntervalPoly {
         (worst <= tol).then_some(poly)
     }
 
+    /// Monomial coefficients in `t = 2 u - 1`, lowest degree first.
+    pub fn coefficients(&self) -> &[f64; 16] {
+        &self.coef
+    }
+
     /// The polynomial at `u` (meant for `u` in `[0, 1]`).
     #[inline(always)]
     pub fn eval(&self, u: f64) -> f64 {
