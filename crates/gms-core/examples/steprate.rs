@@ -18,6 +18,16 @@ impl Instant {
         unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
         Self(ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9)
     }
+    /// Process CPU time (a batch runs on pool threads).
+    fn process() -> Self {
+        let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+        // SAFETY: clock_gettime writes the timespec we pass.
+        unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+        Self(ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9)
+    }
+    fn process_elapsed(&self) -> f64 {
+        Self::process().0 - self.0
+    }
     fn elapsed(&self) -> std::time::Duration {
         std::time::Duration::from_secs_f64(Self::now().0 - self.0)
     }
@@ -56,6 +66,31 @@ fn main() {
         simulate_into(&plant, Some(&model), None, Some(&ctrl), &input, only_error).unwrap();
         best[3] = best[3].min(t0.elapsed().as_secs_f64());
     }
+    // A batch of 8 runs of the same structure (friction levels x0.5..x1.5): two vectors of 4
+    // lanes on one thread, against the same runs one at a time.
+    let jobs: Vec<batch::Job<'_>> = (0..8)
+        .map(|i| {
+            let x = 0.5 + i as f64 / 7.0;
+            let st = Stribeck::new(gms.stribeck.fc * x, gms.stribeck.fs * x, gms.stribeck.vs, 1.0).unwrap();
+            let g = Gms::new(st, gms.k.clone(), gms.alpha.clone(), gms.c, gms.sigma, gms.slip_law).unwrap();
+            batch::Job { axis: Axis::new(plant, Some(FrictionModel::Gms(g)), None).unwrap(), controller: Some(ctrl.clone()), input }
+        })
+        .collect();
+    let rec = Record { position: false, velocity: false, measured: false, command: false, friction: false, error: true, every: 1 };
+    let mut bout = batch::BatchOutput::allocate(8, n, &rec).unwrap();
+    let (mut b_lanes, mut b_single) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..3 {
+        let t0 = Instant::process();
+        batch::simulate_batch_into(&jobs, &rec, &mut bout, &batch::BatchOptions { threads: Some(1), ..Default::default() }).unwrap();
+        b_lanes = b_lanes.min(t0.process_elapsed());
+        let t0 = Instant::process();
+        for j in &jobs {
+            let only_error = ClosedLoopBuffers { error: Some(&mut err), every: 1, ..Default::default() };
+            j.run_into(only_error).unwrap();
+        }
+        b_single = b_single.min(t0.process_elapsed());
+    }
+    println!("batch of 8 on one thread (process CPU time): {:.1} ns per run-step in lanes, {:.1} one run at a time: {:.2}x", b_lanes / (8 * n) as f64 * 1e9, b_single / (8 * n) as f64 * 1e9, b_single / b_lanes);
     let ns = |s: f64| s / n as f64 * 1e9;
     println!(
         "best of 5, {n} steps, GMS N={blocks}: no friction {:.1} ns/step; generic loop {:.1} ns/step; fast kernel {:.1} ns/step (all outputs), {:.1} ns/step (error only); generic / fast = {:.2}",

@@ -294,6 +294,23 @@ fn kernel<const NP: usize, const F: bool>(d: &DiscretePlant, p: &Params<NP>, ref
         ];
     }
     let (mut next_record, mut j_out) = (0usize, 0usize);
+    let asum: [f64; L] = std::array::from_fn(|l| (0..NP).map(|i| p.a[i][l]).sum());
+    let inv_slip: [f64; L] = std::array::from_fn(|l| 1.0 / (1.0 + gf0 * (0.0 + sig_inv_dt[l])));
+    let (mut slip, mut sdir, mut acc_a, mut acc_b) = (false, [0.0f64; L], [0.0f64; L], [1.0f64; L]);
+    let mut f0 = f;
+    let decay_poly = |e: f64, l: usize| {
+        let c = &p.coef;
+        let t = fma(2.0, e, -1.0);
+        let t2 = t * t;
+        let t4 = t2 * t2;
+        let t8 = t4 * t4;
+        let q = |i: usize| fma(c[i + 1][l], t, c[i][l]);
+        let q0 = fma(q(2), t2, q(0));
+        let q1 = fma(q(6), t2, q(4));
+        let q2 = fma(q(10), t2, q(8));
+        let q3 = fma(q(14), t2, q(12));
+        fma(fma(q3, t4, q2), t8, fma(q1, t4, q0))
+    };
     let mut start = 0;
     while start < n {
         if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
@@ -302,11 +319,11 @@ fn kernel<const NP: usize, const F: bool>(d: &DiscretePlant, p: &Params<NP>, ref
         let end = (start + CANCEL_CHECK_STEPS).min(n);
         for kk in start..end {
             let mut u = [0.0f64; L];
-            let mut rk = [0.0f64; L];
+            // SAFETY: kk < end <= n = refs[l].len().
+            let rk: [f64; L] = std::array::from_fn(|l| unsafe { *refs[l].get_unchecked(kk) });
             for l in 0..L {
                 // `Pid::update` operation for operation (plain multiply and add, as there).
-                let r = refs[l][kk];
-                rk[l] = r;
+                let r = rk[l];
                 let e = r - xp[l];
                 let de = e - prev_e[l];
                 prev_e[l] = e;
@@ -332,80 +349,117 @@ fn kernel<const NP: usize, const F: bool>(d: &DiscretePlant, p: &Params<NP>, ref
                 free_v[l] = fma(p11, xv[l], fma(p10, xp[l], fma(go1, old[l], gn1 * new[l])));
                 trial[l] = fma(-gf0, sum_f[l], free_p[l] - xp[l]);
             }
-            let mut kfree = [0.0; L];
-            for i in 0..NP {
-                for l in 0..L {
-                    let dir_t = if trial[l] >= 0.0 { 1.0 } else { -1.0 };
-                    kfree[l] += if m[i][l] == dir_t { 0.0 } else { p.k[i][l] };
-                }
-            }
-            let mut dx = [0.0; L];
             let mut v = [0.0; L];
-            let mut dir = [0.0; L];
-            let mut dir_s = [0.0; L];
-            let mut decay = [0.0; L];
-            for l in 0..L {
-                let inv = 1.0 / (1.0 + gf0 * (kfree[l] + sig_inv_dt[l]));
-                dx[l] = trial[l] * inv;
-                v[l] = dx[l] * inv_dt;
-                dir[l] = if dx[l] > 0.0 { 1.0 } else { -1.0 };
-                let pp = (v[l] * p.inv_vs[l]).abs();
-                let e = exp_neg::<F>(if pp < 700.0 { pp } else { 700.0 });
-                let e = if pp > p.p_cut[l] { 0.0 } else { e };
-                dir_s[l] = dir[l] * fma(p.dip[l], e, p.fc[l]);
-                let c = &p.coef;
-                let t = fma(2.0, e, -1.0);
-                let t2 = t * t;
-                let t4 = t2 * t2;
-                let t8 = t4 * t4;
-                let q = |i: usize| fma(c[i + 1][l], t, c[i][l]);
-                let q0 = fma(q(2), t2, q(0));
-                let q1 = fma(q(6), t2, q(4));
-                let q2 = fma(q(10), t2, q(8));
-                let q3 = fma(q(14), t2, q(12));
-                decay[l] = fma(fma(q3, t4, q2), t8, fma(q1, t4, q0));
-            }
-            for i in 0..NP {
+            let mut dx = [0.0; L];
+            let mut force = [0.0f64; L];
+            let steady = slip && (0..L).fold(true, |ok, l| ok & (trial[l] * sdir[l] > 0.0));
+            if steady {
+                // Slip regime (every block of every lane slips along its lane's direction): the
+                // blocks are `f_i = a_i acc_a + f0_i acc_b` and their sum one number per lane.
                 for l in 0..L {
-                    let f_old = f[i][l];
-                    let target = p.a[i][l] * dir_s[l];
-                    let relaxed = fma(f_old - target, decay[l], target);
-                    let stuck = fma(p.k[i][l], dx[l], f_old);
-                    let along = m[i][l] == dir[l];
-                    let breaks = (stuck - target) * dir[l] >= 0.0;
-                    let beyond = (f_old - target) * dir[l] >= 0.0;
-                    let nf = if along | (breaks & beyond) {
-                        relaxed
-                    } else if breaks {
-                        target
-                    } else {
-                        stuck
-                    };
-                    let nm = if along | breaks { dir[l] } else { 0.0 };
-                    // At rest every block sticks and holds its force.
-                    let zero = dx[l] == 0.0;
-                    m[i][l] = if zero { 0.0 } else { nm };
-                    f[i][l] = if zero { f_old } else { nf };
+                    dx[l] = trial[l] * inv_slip[l];
+                    v[l] = dx[l] * inv_dt;
+                    let pp = (v[l] * p.inv_vs[l]).abs();
+                    let e = exp_neg::<F>(if pp < 700.0 { pp } else { 700.0 });
+                    let e = if pp > p.p_cut[l] { 0.0 } else { e };
+                    let x = sdir[l] * fma(p.dip[l], e, p.fc[l]);
+                    let decay = decay_poly(e, l);
+                    let ax = asum[l] * x;
+                    sum_f[l] = fma(sum_f[l] - ax, decay, ax);
+                    acc_a[l] = fma(acc_a[l] - x, decay, x);
+                    acc_b[l] *= decay;
+                    force[l] = fma(p.sigma[l], v[l], sum_f[l]);
+                }
+            } else {
+                if slip {
+                    // Some lane stops or reverses: back to the block arrays.
+                    for i in 0..NP {
+                        for l in 0..L {
+                            f[i][l] = fma(p.a[i][l], acc_a[l], f0[i][l] * acc_b[l]);
+                            m[i][l] = sdir[l];
+                        }
+                    }
+                    slip = false;
+                }
+                let mut kfree = [0.0; L];
+                for i in 0..NP {
+                    for l in 0..L {
+                        let dir_t = if trial[l] >= 0.0 { 1.0 } else { -1.0 };
+                        kfree[l] += if m[i][l] == dir_t { 0.0 } else { p.k[i][l] };
+                    }
+                }
+                let mut dir = [0.0; L];
+                let mut dir_s = [0.0; L];
+                let mut decay = [0.0; L];
+                for l in 0..L {
+                    let inv = 1.0 / (1.0 + gf0 * (kfree[l] + sig_inv_dt[l]));
+                    dx[l] = trial[l] * inv;
+                    v[l] = dx[l] * inv_dt;
+                    dir[l] = if dx[l] > 0.0 { 1.0 } else { -1.0 };
+                    let pp = (v[l] * p.inv_vs[l]).abs();
+                    let e = exp_neg::<F>(if pp < 700.0 { pp } else { 700.0 });
+                    let e = if pp > p.p_cut[l] { 0.0 } else { e };
+                    dir_s[l] = dir[l] * fma(p.dip[l], e, p.fc[l]);
+                    decay[l] = decay_poly(e, l);
+                }
+                for i in 0..NP {
+                    for l in 0..L {
+                        let f_old = f[i][l];
+                        let target = p.a[i][l] * dir_s[l];
+                        let relaxed = fma(f_old - target, decay[l], target);
+                        let stuck = fma(p.k[i][l], dx[l], f_old);
+                        let along = m[i][l] == dir[l];
+                        let breaks = (stuck - target) * dir[l] >= 0.0;
+                        let beyond = (f_old - target) * dir[l] >= 0.0;
+                        let nf = if along | (breaks & beyond) {
+                            relaxed
+                        } else if breaks {
+                            target
+                        } else {
+                            stuck
+                        };
+                        let nm = if along | breaks { dir[l] } else { 0.0 };
+                        // At rest every block sticks and holds its force.
+                        let zero = dx[l] == 0.0;
+                        m[i][l] = if zero { 0.0 } else { nm };
+                        f[i][l] = if zero { f_old } else { nf };
+                    }
+                }
+                sum_f = hsum_lanes(&f);
+                let mut all_along = true;
+                for l in 0..L {
+                    force[l] = if dx[l] == 0.0 { sum_f[l] } else { fma(p.sigma[l], v[l], sum_f[l]) };
+                    let mut along = dx[l] != 0.0;
+                    for i in 0..NP {
+                        along &= m[i][l] == dir[l];
+                    }
+                    all_along &= along;
+                }
+                if all_along {
+                    slip = true;
+                    sdir = dir;
+                    f0 = f;
+                    acc_a = [0.0; L];
+                    acc_b = [1.0; L];
                 }
             }
-            sum_f = hsum_lanes(&f);
+            let (xp_k, xv_k) = (xp, xv);
             let mut bad = false;
-            let record = kk == next_record;
             for l in 0..L {
-                let force = if dx[l] == 0.0 { sum_f[l] } else { fma(p.sigma[l], v[l], sum_f[l]) };
-                if record {
-                    let vals = [xp[l], xv[l], xp[l], u[l], force, rk[l] - xp[l]];
+                xp[l] = fma(-gf0, force[l], free_p[l]);
+                xv[l] = fma(-gf1, force[l], free_v[l]);
+                bad |= !(xp[l] + xv[l] + force[l] + u[l]).is_finite();
+            }
+            if kk == next_record {
+                for l in 0..L {
+                    let vals = [xp_k[l], xv_k[l], xp_k[l], u[l], force[l], rk[l] - xp_k[l]];
                     for (o, val) in outs[l].iter_mut().zip(vals) {
                         if let Some(o) = o.as_deref_mut() {
-                            o[j_out] = val;
+                            // SAFETY: j_out = kk / every < samples = o.len().
+                            unsafe { *o.get_unchecked_mut(j_out) = val };
                         }
                     }
                 }
-                xp[l] = fma(-gf0, force, free_p[l]);
-                xv[l] = fma(-gf1, force, free_v[l]);
-                bad |= !(xp[l] + xv[l] + force + u[l]).is_finite();
-            }
-            if record {
                 j_out += 1;
                 next_record += every;
             }
