@@ -218,9 +218,9 @@ pub fn simulate_batch_stacked(jobs: &[Job<'_>], record: &Record, opts: &BatchOpt
 /// [`simulate_batch_stacked`] into arrays the caller allocated with [`BatchOutput::allocate`].
 ///
 /// Runs of the same structure ([`crate::lanes::lane_key`]: GMS friction, PID, same plant, step
-/// and length, a reference and nothing else per sample) go in groups of
-/// [`crate::lanes::LANES`], in index order, one SIMD vector per group; the others run one by
-/// one. Groups and single runs spread over the threads; which runs share a vector depends on
+/// and length, a reference and nothing else per sample) go in aligned groups of
+/// [`crate::lanes::LANES`] (runs `4j .. 4j + 3`), one SIMD vector per group; the others run one
+/// by one. Groups and single runs spread over the threads; which runs share a vector depends on
 /// the jobs only, so the results do not depend on the thread count.
 pub fn simulate_batch_into(jobs: &[Job<'_>], record: &Record, out: &mut BatchOutput, opts: &BatchOptions<'_>) -> std::result::Result<(), BatchError> {
     if jobs.is_empty() {
@@ -296,24 +296,20 @@ enum Item<'a> {
     Lanes([usize; crate::lanes::LANES], [ClosedLoopBuffers<'a>; crate::lanes::LANES]),
 }
 
-/// Group runs with equal lane keys, in index order, into full vectors; the rest run alone.
+/// Runs `4j .. 4j + 3` with equal lane keys share a vector; the rest run alone. Groups never
+/// straddle a multiple of [`crate::lanes::LANES`], so a batch split into chunks of such sizes
+/// (`gmsfric.batch`'s `executor=`) computes exactly what the whole batch computes.
 fn plan<'a>(jobs: &[Job<'_>], rows: Vec<ClosedLoopBuffers<'a>>) -> Vec<Item<'a>> {
     use crate::lanes::{lane_key, LANES};
-    let keys: Vec<_> = jobs.iter().map(|j| lane_key(&j.axis, j.controller.as_ref(), &j.input)).collect();
     let mut rows: Vec<Option<ClosedLoopBuffers<'a>>> = rows.into_iter().map(Some).collect();
     let mut items = Vec::new();
-    let mut taken = vec![false; jobs.len()];
-    for i in 0..jobs.len() {
-        let Some(key) = keys[i] else { continue };
-        if taken[i] {
-            continue;
+    for start in (0..jobs.len()).step_by(LANES) {
+        if start + LANES > jobs.len() {
+            break;
         }
-        let group: Vec<usize> = (i..jobs.len()).filter(|&j| !taken[j] && keys[j] == Some(key)).take(LANES).collect();
-        if group.len() == LANES {
-            let idx: [usize; LANES] = std::array::from_fn(|l| group[l]);
-            for &j in &idx {
-                taken[j] = true;
-            }
+        let idx: [usize; LANES] = std::array::from_fn(|l| start + l);
+        let key = lane_key(&jobs[start].axis, jobs[start].controller.as_ref(), &jobs[start].input);
+        if key.is_some() && idx.iter().all(|&j| lane_key(&jobs[j].axis, jobs[j].controller.as_ref(), &jobs[j].input) == key) {
             let bufs = idx.map(|j| rows[j].take().expect("each row once"));
             items.push(Item::Lanes(idx, bufs));
         }

@@ -28,7 +28,8 @@ pub const DECAY_TOL: f64 = 1e-14;
 /// Most blocks a lane run may have.
 pub const MAX_BLOCKS: usize = 8;
 
-/// What runs must share to go into one vector. Runs with equal keys are grouped by index order.
+/// What runs must share to go into one vector (aligned groups of [`LANES`] runs, see
+/// [`crate::batch::simulate_batch_into`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LaneKey {
     plant: [u64; 5],
