@@ -321,8 +321,9 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
     let every = out.every.max(1);
     let samples = n.div_ceil(every);
     let Outs { pos, vel, meas, cmd, fric, err, .. } = out;
-    let (mut pos, mut vel, mut meas) = (pos.map(|b| &mut b[..samples]), vel.map(|b| &mut b[..samples]), meas.map(|b| &mut b[..samples]));
-    let (mut cmd, mut fric, mut err) = (cmd.map(|b| &mut b[..samples]), fric.map(|b| &mut b[..samples]), err.map(|b| &mut b[..samples]));
+    // The recorded outputs as (slot, row): slots 0..6 are position, velocity, measured, command,
+    // friction, error; a run that records one array pays for one store.
+    let mut active: Vec<(usize, &mut [f64])> = [pos, vel, meas, cmd, fric, err].into_iter().enumerate().filter_map(|(i, o)| o.map(|b| (i, &mut b[..samples]))).collect();
     let k: [f64; NP] = pad(&g.k);
     let a: [f64; NP] = pad(&g.alpha);
     let mut f = [0.0f64; NP];
@@ -380,14 +381,8 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
     let c_p = fma(p00, gf0, p01 * gf1);
     let c_v = fma(p10, gf0, p11 * gf1);
     let c_q = fma(pm1, c_p, p01 * c_v);
-    #[inline(always)]
-    fn ring_at(ring: &[f64], kk: usize, delay: usize, mask: usize) -> (f64, f64, f64) {
-        // SAFETY: indices are masked to the ring's power-of-two length.
-        unsafe { (*ring.get_unchecked(kk.wrapping_sub(delay + 1) & mask), *ring.get_unchecked(kk.wrapping_sub(delay) & mask), *ring.get_unchecked((kk + 1).wrapping_sub(delay) & mask)) }
-    }
-    let ring_at = |ring: &[f64], kk: usize| ring_at(ring, kk, delay, mask);
     macro_rules! prologue {
-        ($kk:ident, $r:ident, $y:ident, $u:ident, $free_p:ident, $free_v:ident, $q:ident) => {
+        ($kk:ident, $r:ident, $y:ident, $u:ident, $old:ident, $new:ident, $new1:ident) => {
             let kk = $kk;
             let (r, y, u);
             if PLAIN {
@@ -418,47 +413,35 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
                 *ring.get_unchecked_mut(kk & mask) = u;
                 (*ring.get_unchecked(kk.wrapping_sub(delay + 1) & mask), *ring.get_unchecked(kk.wrapping_sub(delay) & mask), *ring.get_unchecked((kk + 1).wrapping_sub(delay) & mask))
             };
+            let ($r, $y, $u, $old, $new, $new1) = (r, y, u, old, new, new1);
+        };
+    }
+    // The plant's free motion over the step and the next step's residual without friction (known
+    // now: the input is delayed), from the state.
+    macro_rules! free_motion {
+        ($kk:ident, $old:ident, $new:ident, $new1:ident, $free_p:ident, $free_v:ident, $q:ident) => {
+            let (kk, old, new, new1) = ($kk, $old, $new, $new1);
             let mut free_p = fma(p00, xp, fma(p01, xv, fma(go0, old, gn0 * new)));
             let mut free_v = fma(p11, xv, fma(p10, xp, fma(go1, old, gn1 * new)));
             if let (false, Some(l)) = (PLAIN, load) {
                 free_p -= gf0 * l[kk];
                 free_v -= gf1 * l[kk];
             }
-            // The next step's residual without friction: known now (the input is delayed).
             let mut q = fma(pm1, free_p, fma(p01, free_v, fma(go0, new, gn0 * new1)));
             if !PLAIN && load.is_some() {
                 q -= gf0 * load_at(kk + 1);
             }
-            let ($r, $y, $u, $free_p, $free_v, $q) = (r, y, u, free_p, free_v, q);
+            let ($free_p, $free_v, $q) = (free_p, free_v, q);
         };
     }
     macro_rules! epilogue {
         ($kk:ident, $r:ident, $y:ident, $u:ident, $free_p:ident, $free_v:ident, $force:ident) => {
             let (kk, r, y, u, free_p, free_v, force) = ($kk, $r, $y, $u, $free_p, $free_v, $force);
             if kk == next_record {
-                if let Some(o) = pos.as_deref_mut() {
+                let vals = [xp, xv, y, u, force, r - xp];
+                for (slot, o) in active.iter_mut() {
                     // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
-                    unsafe { *o.get_unchecked_mut(j_out) = xp };
-                }
-                if let Some(o) = vel.as_deref_mut() {
-                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
-                    unsafe { *o.get_unchecked_mut(j_out) = xv };
-                }
-                if let Some(o) = meas.as_deref_mut() {
-                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
-                    unsafe { *o.get_unchecked_mut(j_out) = y };
-                }
-                if let Some(o) = cmd.as_deref_mut() {
-                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
-                    unsafe { *o.get_unchecked_mut(j_out) = u };
-                }
-                if let Some(o) = fric.as_deref_mut() {
-                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
-                    unsafe { *o.get_unchecked_mut(j_out) = force };
-                }
-                if let Some(o) = err.as_deref_mut() {
-                    // SAFETY: j_out = kk / every < samples = o.len() (kk < n).
-                    unsafe { *o.get_unchecked_mut(j_out) = r - xp };
+                    unsafe { *o.get_unchecked_mut(j_out) = vals[*slot] };
                 }
                 j_out += 1;
                 next_record += every;
@@ -498,11 +481,10 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
                 // this step is known (the index changes rarely), so the look-up leaves the chain.
                 let (mut key, mut centre) = (usize::MAX, 0.0f64);
                 while kk < end && trial * slip_dir > 0.0 {
-                    prologue!(kk, r, y, u, free_p, free_v, q_direct);
-                    let _ = q_direct;
-                    // The same residual with the last force entering through one multiply-add
-                    // (the free motion before it is known a step earlier).
-                    let (old, new, new1) = ring_at(&ring, kk);
+                    prologue!(kk, r, y, u, old, new, new1);
+                    // The free motion and the next residual from the last step's free motion,
+                    // with the last force entering through one multiply-add each (the same
+                    // recurrence as through the state, in other variables).
                     let mut fp0 = fma(p00, lf_p, fma(p01, lf_v, fma(go0, old, gn0 * new)));
                     let mut fv0 = fma(p11, lf_v, fma(p10, lf_p, fma(go1, old, gn1 * new)));
                     if let (false, Some(l)) = (PLAIN, load) {
@@ -513,6 +495,8 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
                     if !PLAIN && load.is_some() {
                         q0 -= gf0 * load_at(kk + 1);
                     }
+                    let free_p = fma(-c_p, lf_f, fp0);
+                    let free_v = fma(-c_v, lf_f, fv0);
                     let q = fma(-c_q, lf_f, q0);
                     let p = trial * pq;
                     let kd = fma(trial, kq, SHIFT);
@@ -562,7 +546,8 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
                 }
             } else {
                 while kk < end {
-                    prologue!(kk, r, y, u, free_p, free_v, q);
+                    prologue!(kk, r, y, u, old, new, new1);
+                    free_motion!(kk, old, new, new1, free_p, free_v, q);
                     let (mut all_along, mut step_dir) = (false, 0.0f64);
             let force;
             if trial == 0.0 {
