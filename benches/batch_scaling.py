@@ -8,7 +8,11 @@ recording its tracking error. Rows, interleaved repetitions (so load changes hit
 
 - one run at a time: ``simulate_closed_loop`` in a Python loop (the latency-optimised single run);
 - ``simulate_batch(..., threads=1)``: runs of one structure go 4 per AVX2 vector;
-- ``simulate_batch(..., threads=k)`` for every core.
+- ``simulate_batch(..., threads=k)`` for every core;
+- with ``--dask``: ``simulate_batch(..., executor=client.get_executor())`` on a
+  ``dask.distributed.LocalCluster`` (one worker process per core, one thread each), chunks of
+  ``--chunk`` runs: the cost of shipping models and results on this machine (a real cluster adds
+  machines).
 
 Prints min / median steps/s (wall and process CPU time) and the ratio to one run at a time, and
 checks that the batch agrees with the single runs (lanes: to rounding, see BENCHMARKS.md).
@@ -38,6 +42,8 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=16)
     ap.add_argument("--steps", type=int, default=1_000_000)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--dask", action="store_true", help="add a dask LocalCluster row (needs the dask extra)")
+    ap.add_argument("--chunk", type=int, default=4, help="runs per executor chunk with --dask")
     args = ap.parse_args()
     plant, gms, pid = nb.gmsfric_system(4)
     ref = nb.reference(args.steps)
@@ -57,6 +63,15 @@ def main() -> None:
     rows = {"one run at a time (simulate_closed_loop loop)": singles}
     for k in range(1, (os.cpu_count() or 1) + 1):
         rows[f"simulate_batch, threads={k}"] = lambda k=k: batch(k)
+    client = None
+    if args.dask:
+        from distributed import Client, LocalCluster
+
+        cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+        ex = client.get_executor()
+        rows[f"dask LocalCluster ({os.cpu_count()} workers x 1 thread), chunks of {args.chunk}"] = lambda: simulate_batch(
+            plant, frictions, pid, ref, nb.DT, threads=1, progress=False, record=("error",), executor=ex, chunk_size=args.chunk).error
     wall: dict[str, list[float]] = {k: [] for k in rows}
     cpu: dict[str, list[float]] = {k: [] for k in rows}
     outs: dict[str, object] = {}
@@ -82,7 +97,10 @@ def main() -> None:
     scale = np.abs(single).max()
     for name in list(rows)[1:]:
         diff = np.abs(np.asarray(outs[name]) - single).max()
-        print(f"{name}: max |error - single run's| = {diff:.3g} m ({diff / scale:.2g} of max |error|)")
+        same = np.array_equal(np.asarray(outs[name]), np.asarray(outs[list(rows)[1]]))
+        print(f"{name}: max |error - single run's| = {diff:.3g} m ({diff / scale:.2g} of max |error|); identical to threads=1: {same}")
+    if client is not None:
+        client.close()
     b1, b2 = list(rows)[1:3] if len(rows) > 2 else (list(rows)[1], list(rows)[1])
     print(f"RATIO batch on 1 thread / one run at a time: {statistics.median(b / a for a, b in zip(wall[b1], wall[base])):.2f}x wall, "
           f"{statistics.median(b / a for a, b in zip(cpu[b1], cpu[base])):.2f}x cpu; "

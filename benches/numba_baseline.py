@@ -116,7 +116,7 @@ def record_kwargs() -> tuple[dict[str, Any], str]:
 
 def plain_args(plant: g.Plant, gms: g.GMS, pid: g.PID) -> tuple:
     """Arguments of ``compare.make_numba_plain()`` for this system."""
-    phi, g_old, g_new, g_f, m = _gmsfric.discretize_plant(plant.params, DT)
+    phi, g_old, g_new, g_f, m = plant._native.discretize(DT)
     st = gms.stribeck
     return (DT, np.array(phi), np.array(g_old), np.array(g_new), np.array(g_f), m, pid.kp, pid.ki, pid.kd, pid.tf,
             float(pid.u_min), float(pid.u_max), st.fc, st.fs, st.vs, st.delta, gms.c, gms.sigma, np.array(gms.k), np.array(gms.alpha))

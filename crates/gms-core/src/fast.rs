@@ -371,10 +371,18 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
     };
     let (mut next_record, mut j_out) = (0usize, 0usize);
     // Slip regime: every block slips along `slip_dir`. Then each block follows
-    // `f_i' = d f_i + a_i dir w`, so the blocks are `f_i = a_i acc_a + f0_i acc_b` and their sum
+    // `f_i' = d f_i + a_i dir w`, so the blocks are `f_i = a_i A + f0_i acc_b` and their sum
     // one scalar: the step needs no block arrays (they are rebuilt when the regime ends).
     let asum: f64 = a.iter().sum();
-    let (mut slip, mut slip_dir, mut slip_sum, mut acc_a, mut acc_b) = (false, 0.0f64, 0.0f64, 0.0f64, 1.0f64);
+    let (mut slip, mut slip_dir, mut slip_sum, mut acc_b) = (false, 0.0f64, 0.0f64, 1.0f64);
+    // The blocks from the lumped sum: `sum = asum A + sum(f0) acc_b` gives `A`.
+    let blocks_of = |slip_sum: f64, acc_b: f64, f0: &[f64; NP], f: &mut [f64; NP]| {
+        let s0: f64 = f0.iter().sum();
+        let big_a = (slip_sum - s0 * acc_b) / asum;
+        for i in 0..NP {
+            f[i] = fma(a[i], big_a, f0[i] * acc_b);
+        }
+    };
     let mut f0 = f;
     // The last step's free motion and force (the slip regime forms the next residual from them).
     let (mut lf_p, mut lf_v, mut lf_f) = (0.0f64, 0.0f64, 0.0f64);
@@ -526,7 +534,6 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
                     let big_a = fma(trial, sa, q);
                     let next = fma(alpha, w, fma(-b * slip_sum, dcy, big_a));
                     slip_sum = fma(slip_sum, dcy, dir_asum * w);
-                    acc_a = fma(acc_a, dcy, slip_dir * w);
                     acc_b *= dcy;
                     trial = next;
                     let force = fma(sigma, v, slip_sum);
@@ -536,10 +543,8 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
                 }
                 if kk < end {
                     // The motion stops or reverses: back to the block arrays.
-                    for i in 0..NP {
-                        f[i] = fma(a[i], acc_a, f0[i] * acc_b);
-                        m[i] = slip_dir;
-                    }
+                    blocks_of(slip_sum, acc_b, &f0, &mut f);
+                    m = [slip_dir; NP];
                     dc = consts(&m);
                     fs = force_sums(&f, &m);
                     slip = false;
@@ -636,7 +641,7 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
                         slip_dir = step_dir;
                         slip_sum = fs[2];
                         f0 = f;
-                        (acc_a, acc_b) = (0.0, 1.0);
+                        acc_b = 1.0;
                         break;
                     }
                 }
@@ -644,13 +649,7 @@ fn kernel<const NP: usize, const F: bool, const PLAIN: bool, C: Controller + Clo
         }
         start = end;
     }
-    if slip {
-        // Leave the block arrays consistent (not read after the run, kept for clarity of state).
-        for i in 0..NP {
-            f[i] = fma(a[i], acc_a, f0[i] * acc_b);
-        }
-    }
-    let _ = (&f, &m);
+    let _ = (&f, &m, &f0, slip_sum, acc_b);
     *ctrl_out = ctrl_local;
     Ok(Outcome::Done)
 }
