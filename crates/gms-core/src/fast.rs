@@ -19,8 +19,13 @@
 //!   each is a degree-7 polynomial (Chebyshev interpolation, built on first use of an interval and
 //!   checked against the exact formulas at nine points to [`TABLE_TOL`]). The three evaluate
 //!   side by side in one vector; beyond the cut-off where `s == fc` exactly, constants.
-//! - branch-free block updates over arrays padded to 4, 8 or 16 blocks; per-direction constants
-//!   (coupling reciprocal, ...) recomputed only when a block changes mode.
+//! - **slip regime**: while every block slips along the motion, each block follows
+//!   `f_i' = d f_i + a_i dir w`, so their sum is one number and the step touches no block array;
+//!   the residual's look-up row is predicted (it changes rarely), so the table load leaves the
+//!   chain, and the last force enters the next residual through one multiply-add. When the motion
+//!   stops or reverses, the blocks are rebuilt and the general step runs.
+//! - general step: branch-free block updates over arrays padded to 4, 8 or 16 blocks;
+//!   per-direction constants (coupling reciprocal, ...) recomputed only when a block changes mode.
 //!
 //! Each kernel is compiled twice, for the baseline x86-64 target and with AVX2 + FMA, and the
 //! second is chosen at run time where the CPU has it ([`crate::numeric::has_avx2_fma`]).
