@@ -283,17 +283,17 @@ fn kernel<const NP: usize, const F: bool>(d: &DiscretePlant, p: &Params<NP>, ref
     let mut f = [[0.0f64; L]; NP];
     let mut m = [[0.0f64; L]; NP];
     let sig_inv_dt: [f64; L] = std::array::from_fn(|l| p.sigma[l] * inv_dt);
-    let mut outs: [[Option<&mut [f64]>; 6]; L] = std::array::from_fn(|_| [None, None, None, None, None, None]);
+    // The recorded outputs as (slot, one row per lane); slots 0..6 are position, velocity,
+    // measured, command, friction, error. A batch records the same outputs for every run.
+    let mut cols: [[Option<&mut [f64]>; L]; 6] = std::array::from_fn(|_| std::array::from_fn(|_| None));
     for (l, o) in out.iter_mut().enumerate() {
-        outs[l] = [
-            o.position.as_deref_mut().map(|b| &mut b[..samples]),
-            o.velocity.as_deref_mut().map(|b| &mut b[..samples]),
-            o.measured.as_deref_mut().map(|b| &mut b[..samples]),
-            o.command.as_deref_mut().map(|b| &mut b[..samples]),
-            o.friction.as_deref_mut().map(|b| &mut b[..samples]),
-            o.error.as_deref_mut().map(|b| &mut b[..samples]),
-        ];
+        let bufs = [o.position.as_deref_mut(), o.velocity.as_deref_mut(), o.measured.as_deref_mut(), o.command.as_deref_mut(), o.friction.as_deref_mut(), o.error.as_deref_mut()];
+        for (slot, b) in bufs.into_iter().enumerate() {
+            cols[slot][l] = b.map(|b| &mut b[..samples]);
+        }
     }
+    debug_assert!(cols.iter().all(|c| c.iter().all(Option::is_some) || c.iter().all(Option::is_none)));
+    let mut active: Vec<(usize, [&mut [f64]; L])> = cols.into_iter().enumerate().filter(|(_, c)| c.iter().all(Option::is_some)).map(|(slot, c)| (slot, c.map(|b| b.expect("checked")))).collect();
     let (mut next_record, mut j_out) = (0usize, 0usize);
     let asum: [f64; L] = std::array::from_fn(|l| (0..NP).map(|i| p.a[i][l]).sum());
     let inv_slip: [f64; L] = std::array::from_fn(|l| 1.0 / (1.0 + gf0 * (0.0 + sig_inv_dt[l])));
@@ -452,13 +452,12 @@ fn kernel<const NP: usize, const F: bool>(d: &DiscretePlant, p: &Params<NP>, ref
                 bad |= !(xp[l] + xv[l] + force[l] + u[l]).is_finite();
             }
             if kk == next_record {
-                for l in 0..L {
-                    let vals = [xp_k[l], xv_k[l], xp_k[l], u[l], force[l], rk[l] - xp_k[l]];
-                    for (o, val) in outs[l].iter_mut().zip(vals) {
-                        if let Some(o) = o.as_deref_mut() {
-                            // SAFETY: j_out = kk / every < samples = o.len().
-                            unsafe { *o.get_unchecked_mut(j_out) = val };
-                        }
+                let err: [f64; L] = std::array::from_fn(|l| rk[l] - xp_k[l]);
+                let vals = [xp_k, xv_k, xp_k, u, force, err];
+                for (slot, rows) in active.iter_mut() {
+                    for (row, &val) in rows.iter_mut().zip(&vals[*slot]) {
+                        // SAFETY: j_out = kk / every < samples = row.len().
+                        unsafe { *row.get_unchecked_mut(j_out) = val };
                     }
                 }
                 j_out += 1;
