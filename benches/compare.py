@@ -3,12 +3,15 @@
     python benches/compare.py                 # full run (10^7 closed-loop steps; ~2-4 min)
     python benches/compare.py --steps 1000000 # quicker
 
-Task A (the headline): the paper's closed-loop axis -- plant a/(s^2+bs+c) with a 1.29 ms input
+The headline comparison, against the numba loop a competent user writes (``numba_axis.py``), is
+``benches/numba_baseline.py``.  This script compares implementations of gmsfric's own algorithm.
+
+Task A: the paper's closed-loop axis -- plant a/(s^2+bs+c) with a 1.29 ms input
 delay (exact ZOH, fractional delay), PID with filtered derivative and anti-windup, 4-block GMS
 coupled linearly-implicitly -- dt = 1e-4 s, reference 0.2 mm 0.5 Hz sine (no drive saturation).
 Two numba versions implement the core's algorithm: "straightforward" is written as the equations
-read (what a user would write; the issue's baseline), "hand-mirrored" copies the core's operation
-order and caches. Both use the discretisation from ``_gmsfric.discretize_plant``; the script
+read (a transliteration of gmsfric's algorithm), "hand-mirrored" copies the core's operation
+order and caches. Both use the discretisation from ``Plant._native.discretize``; the script
 prints the max abs difference of the trajectories (rounding level: the core fuses multiply-adds
 and multiplies by reciprocals).
 Task B: cost against the number of GMS blocks N (1..64), gmsfric vs numba.
@@ -65,7 +68,7 @@ def timed(fn, repeats: int):
 
 
 def loop_args(model: GMS):
-    phi, g_old, g_new, g_f, m = _gmsfric.discretize_plant(PLANT.params, DT)
+    phi, g_old, g_new, g_f, m = PLANT._native.discretize(DT)
     p = CTRL
     return (DT, np.array(phi), np.array(g_old), np.array(g_new), np.array(g_f), m, p.kp, p.ki, p.kd, p.tf, float(p.u_min), float(p.u_max),
             ST.fc, ST.fs, ST.vs, model.c, model.sigma, np.array(model.k), np.array(model.alpha))

@@ -1,4 +1,5 @@
-"""Batch simulation: equals individual runs exactly, stacked shapes, errors name the run."""
+"""Batch simulation: equals individual runs (exactly, or to rounding for runs in SIMD lanes),
+stacked shapes, errors name the run."""
 
 from __future__ import annotations
 
@@ -69,7 +70,8 @@ def test_sweep_grid_and_assignments(axis):
 
     g = replace(gms, stribeck=replace(gms.stribeck, fc=0.19))
     single = simulate_closed_loop(replace(plant, delay=1e-3), g, replace(pid, kp=6e5), ref, DT)
-    np.testing.assert_array_equal(res.position[3], single.position)
+    # Four runs of one structure share a SIMD vector: equal to the single run to rounding.
+    np.testing.assert_allclose(res.position[3], single.position, rtol=0, atol=1e-12 * np.abs(single.position).max())
     assert grid(a=[1, 2], b="xy") == [{"a": 1, "b": "x"}, {"a": 1, "b": "y"}, {"a": 2, "b": "x"}, {"a": 2, "b": "y"}]
     # Monte Carlo style: a list of assignments, one per run.
     combos, res = sweep(plant, gms, pid, ref, DT, vary=[{"friction.c": c} for c in (1000.0, 3000.0, 5000.0)])
@@ -140,3 +142,21 @@ def test_friction_batch_equals_single_runs_and_shares_input(axis):
     bad[2, 3] = np.inf
     with pytest.raises(InvalidInputError, match="row 2, index 3"):
         simulate_friction_batch([gms] * 3, t, bad)
+
+
+@pytest.mark.parametrize("n_runs", [4, 9])
+def test_runs_in_simd_lanes_agree_with_single_runs_and_not_with_threads(axis, n_runs):
+    plant, gms, pid, ref = axis
+    from dataclasses import replace
+
+    st = gms.stribeck
+    frictions = [replace(gms, stribeck=replace(st, fc=st.fc * x, fs=st.fs * x)) for x in np.linspace(0.5, 1.5, n_runs)]
+    one = simulate_batch(plant, frictions, pid, ref, DT, threads=1, record=("position", "friction", "error"))
+    two = simulate_batch(plant, frictions, pid, ref, DT, threads=2, record=("position", "friction", "error"))
+    for name in ("position", "friction", "recorded_error"):
+        np.testing.assert_array_equal(getattr(one, name), getattr(two, name), err_msg=name)
+    for i, f in enumerate(frictions):
+        single = simulate_closed_loop(plant, f, pid, ref, DT)
+        np.testing.assert_allclose(one.position[i], single.position, rtol=0, atol=1e-12 * np.abs(single.position).max())
+        np.testing.assert_allclose(one.friction[i], single.friction, rtol=0, atol=1e-10 * np.abs(single.friction).max())
+        np.testing.assert_allclose(one.error[i], single.error, rtol=0, atol=1e-12 * np.abs(single.position).max())

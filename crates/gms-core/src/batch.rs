@@ -216,28 +216,69 @@ pub fn simulate_batch_stacked(jobs: &[Job<'_>], record: &Record, opts: &BatchOpt
 }
 
 /// [`simulate_batch_stacked`] into arrays the caller allocated with [`BatchOutput::allocate`].
+///
+/// Runs of the same structure ([`crate::lanes::lane_key`]: GMS friction, PID, same plant, step
+/// and length, a reference and nothing else per sample) go in aligned groups of
+/// [`crate::lanes::LANES`] (runs `4j .. 4j + 3`), one SIMD vector per group; the others run one
+/// by one. Groups and single runs spread over the threads; which runs share a vector depends on
+/// the jobs only, so the results do not depend on the thread count.
 pub fn simulate_batch_into(jobs: &[Job<'_>], record: &Record, out: &mut BatchOutput, opts: &BatchOptions<'_>) -> std::result::Result<(), BatchError> {
     if jobs.is_empty() {
         return Ok(());
     }
     let first_failure = AtomicUsize::new(usize::MAX);
     let rows = out.row_buffers(record.every.max(1));
-    let results: Vec<Result<()>> = in_pool(opts.threads, || {
-        rows.into_par_iter()
-            .zip(jobs.par_iter())
-            .enumerate()
-            .map(|(i, (buffers, job))| {
-                if i > first_failure.load(Ordering::Relaxed) {
-                    return Err(CoreError::Interrupted);
+    let items = plan(jobs, rows);
+    let run_one = |i: usize, buffers: ClosedLoopBuffers<'_>| -> Result<()> {
+        if i > first_failure.load(Ordering::Relaxed) {
+            return Err(CoreError::Interrupted);
+        }
+        let job = &jobs[i];
+        // Each run writes straight into its rows of the stacked arrays.
+        track(opts, || job.axis.simulate_into(job.controller.as_ref(), &input_of(job, opts), buffers)).inspect_err(|_| {
+            first_failure.fetch_min(i, Ordering::Relaxed);
+        })
+    };
+    let run_item = |item: Item<'_>| -> Vec<(usize, Result<()>)> {
+        match item {
+            Item::Single(i, buffers) => vec![(i, run_one(i, buffers))],
+            Item::Lanes(idx, mut buffers) => {
+                if idx[0] > first_failure.load(Ordering::Relaxed) {
+                    return idx.iter().map(|&i| (i, Err(CoreError::Interrupted))).collect();
                 }
-                // Each run writes straight into its rows of the stacked arrays.
-                track(opts, || job.axis.simulate_into(job.controller.as_ref(), &input_of(job, opts), buffers)).inspect_err(|_| {
-                    first_failure.fetch_min(i, Ordering::Relaxed);
-                })
-            })
-            .collect()
-    })
-    .map_err(|error| BatchError { run: 0, error })?;
+                if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                    return idx.iter().map(|&i| (i, Err(CoreError::Interrupted))).collect();
+                }
+                let pid = |i: usize| match &jobs[i].controller {
+                    Some(ControllerModel::Pid(p)) => p,
+                    _ => unreachable!("lane_key admits PID runs only"),
+                };
+                let done = crate::lanes::run_group(
+                    idx.map(|i| &jobs[i].axis),
+                    idx.map(pid),
+                    idx.map(|i| &jobs[i].input),
+                    &mut buffers,
+                    opts.cancel,
+                );
+                match done {
+                    Ok(true) => {
+                        if let Some(p) = opts.progress {
+                            p.fetch_add(idx.len(), Ordering::Relaxed);
+                        }
+                        idx.iter().map(|&i| (i, Ok(()))).collect()
+                    }
+                    Err(e) => idx.iter().map(|&i| (i, Err(e.clone()))).collect(),
+                    // A lane cannot run in the vector (or failed): the runs one by one, which
+                    // also reports the failing run's own error.
+                    Ok(false) => idx.into_iter().zip(buffers).map(|(i, b)| (i, run_one(i, b))).collect(),
+                }
+            }
+        }
+    };
+    let mut results: Vec<(usize, Result<()>)> =
+        in_pool(opts.threads, || items.into_par_iter().flat_map_iter(run_item).collect()).map_err(|error| BatchError { run: 0, error })?;
+    results.sort_by_key(|(i, _)| *i);
+    let results: Vec<Result<()>> = results.into_iter().map(|(_, r)| r).collect();
     // Report the lowest-index real failure; skipped runs are a consequence, not a cause (they
     // are reported only when the caller cancelled the batch).
     let first_real = results.iter().position(|r| matches!(r, Err(e) if *e != CoreError::Interrupted));
@@ -247,6 +288,38 @@ pub fn simulate_batch_into(jobs: &[Job<'_>], record: &Record, out: &mut BatchOut
         return Err(BatchError { run: i, error });
     }
     Ok(())
+}
+
+/// A unit of batch work: one run, or [`crate::lanes::LANES`] runs in one vector.
+enum Item<'a> {
+    Single(usize, ClosedLoopBuffers<'a>),
+    Lanes([usize; crate::lanes::LANES], [ClosedLoopBuffers<'a>; crate::lanes::LANES]),
+}
+
+/// Runs `4j .. 4j + 3` with equal lane keys share a vector; the rest run alone. Groups never
+/// straddle a multiple of [`crate::lanes::LANES`], so a batch split into chunks of such sizes
+/// (`gmsfric.batch`'s `executor=`) computes exactly what the whole batch computes.
+fn plan<'a>(jobs: &[Job<'_>], rows: Vec<ClosedLoopBuffers<'a>>) -> Vec<Item<'a>> {
+    use crate::lanes::{lane_key, LANES};
+    let mut rows: Vec<Option<ClosedLoopBuffers<'a>>> = rows.into_iter().map(Some).collect();
+    let mut items = Vec::new();
+    for start in (0..jobs.len()).step_by(LANES) {
+        if start + LANES > jobs.len() {
+            break;
+        }
+        let idx: [usize; LANES] = std::array::from_fn(|l| start + l);
+        let key = lane_key(&jobs[start].axis, jobs[start].controller.as_ref(), &jobs[start].input);
+        if key.is_some() && idx.iter().all(|&j| lane_key(&jobs[j].axis, jobs[j].controller.as_ref(), &jobs[j].input) == key) {
+            let bufs = idx.map(|j| rows[j].take().expect("each row once"));
+            items.push(Item::Lanes(idx, bufs));
+        }
+    }
+    for (i, row) in rows.iter_mut().enumerate() {
+        if let Some(b) = row.take() {
+            items.push(Item::Single(i, b));
+        }
+    }
+    items
 }
 
 /// Friction-only simulation of many models along position trajectories sampled at the shared

@@ -40,7 +40,7 @@ impl FrictionElement for NoFriction {
 
 /// Steps between two looks at the cancel flag: rare enough to cost nothing, frequent enough
 /// (about a millisecond) for Ctrl-C to feel immediate.
-const CANCEL_CHECK_STEPS: usize = 1 << 15;
+pub(crate) const CANCEL_CHECK_STEPS: usize = 1 << 15;
 
 /// Inputs of one run besides plant, friction and controller. Arrays are borrowed so callers
 /// (numpy) need not copy them. This is the one description of a run's inputs: single runs,
@@ -224,7 +224,7 @@ impl ClosedLoopOutput {
     }
 }
 
-fn non_finite(quantity: &'static str, step: usize, dt: f64) -> CoreError {
+pub(crate) fn non_finite(quantity: &'static str, step: usize, dt: f64) -> CoreError {
     let hint = match quantity {
         "command" => "check the controller gains, the reference and the drive limits",
         "friction" => "check the friction parameters against the step size",
@@ -232,6 +232,23 @@ fn non_finite(quantity: &'static str, step: usize, dt: f64) -> CoreError {
         _ => "the loop is probably unstable at these gains or this step size",
     };
     CoreError::NonFiniteOutput { quantity, step, time: step as f64 * dt, hint }
+}
+
+/// Every output buffer holds exactly the `m` recorded samples.
+fn check_buffers(out: &ClosedLoopBuffers<'_>, m: usize) -> Result<()> {
+    for (name, buf) in [
+        ("position", &out.position),
+        ("velocity", &out.velocity),
+        ("measured", &out.measured),
+        ("command", &out.command),
+        ("friction", &out.friction),
+        ("error", &out.error),
+    ] {
+        if let Some(b) = buf {
+            check::same_len(name, b, "recorded samples", m)?;
+        }
+    }
+    Ok(())
 }
 
 /// Simulate with concrete (monomorphised) friction and controller types, writing into `out`.
@@ -247,18 +264,7 @@ pub fn simulate_generic_into<F: FrictionElement, C: Controller>(
     let n = input.len();
     let every = out.every.max(1);
     let m = n.div_ceil(every);
-    for (name, buf) in [
-        ("position", &out.position),
-        ("velocity", &out.velocity),
-        ("measured", &out.measured),
-        ("command", &out.command),
-        ("friction", &out.friction),
-        ("error", &out.error),
-    ] {
-        if let Some(b) = buf {
-            check::same_len(name, b, "recorded samples", m)?;
-        }
-    }
+    check_buffers(&out, m)?;
     let d = plant.discretize(input.dt)?;
     controller.prepare(input.dt)?;
     controller.begin(input.initial_position, input.initial_velocity);
@@ -370,6 +376,10 @@ pub fn simulate_into(
     let effects = effects.filter(|e| !e.is_empty());
     match friction.cloned() {
         None => with_effects(plant, NoFriction, effects, controller, input, out),
+        Some(FrictionModel::Gms(mut g)) if effects.is_none() => {
+            g.reset();
+            with_gms(plant, g, controller, input, out)
+        }
         Some(mut model) => {
             model.reset();
             with_friction!(model, f => with_effects(plant, f, effects, controller, input, out))
@@ -405,6 +415,48 @@ fn with_effects<F: FrictionElement>(
             }
         }
     }
+}
+
+/// A GMS run without effects: the latency-optimised kernel ([`crate::fast`]) where it applies,
+/// the generic loop otherwise (or if the kernel's table misses its tolerance somewhere).
+fn with_gms(plant: &Plant, g: crate::friction::Gms, controller: Option<&ControllerModel>, input: &ClosedLoopInput<'_>, mut out: ClosedLoopBuffers<'_>) -> Result<()> {
+    use crate::fast::{Outcome, Outs, StribeckTable};
+    input.validate(false)?;
+    let n = input.len();
+    let d = plant.discretize(input.dt)?;
+    let table = if crate::fast::eligible(&g, &d, n) { StribeckTable::new(&g, input.dt) } else { None };
+    if let Some(mut table) = table {
+        check_buffers(&out, n.div_ceil(out.every.max(1)))?;
+        let outs = Outs {
+            pos: out.position.as_deref_mut(),
+            vel: out.velocity.as_deref_mut(),
+            meas: out.measured.as_deref_mut(),
+            cmd: out.command.as_deref_mut(),
+            fric: out.friction.as_deref_mut(),
+            err: out.error.as_deref_mut(),
+            every: out.every,
+        };
+        let (x0, v0) = (input.initial_position, input.initial_velocity);
+        let outcome = match controller.cloned() {
+            None => {
+                let mut c = OpenLoop;
+                c.prepare(input.dt)?;
+                crate::fast::run(&g, &mut table, &d, &mut c, input, outs)?
+            }
+            Some(mut c) => {
+                c.reset();
+                with_controller!(&mut c, c => {
+                    c.prepare(input.dt)?;
+                    c.begin(x0, v0);
+                    crate::fast::run(&g, &mut table, &d, c, input, outs)?
+                })
+            }
+        };
+        if let Outcome::Done = outcome {
+            return Ok(());
+        }
+    }
+    with_control(plant, g, controller, input, out)
 }
 
 fn with_control<F: FrictionElement>(

@@ -11,6 +11,8 @@
 //! - [`effects`]: effects beyond the friction model, in feedback (position- and time-dependent
 //!   friction and forces, asymmetry, extra pre-sliding blocks, a compliant load).
 //! - [`closed_loop`]: the closed-loop (or open-loop) axis with friction and effects in the loop.
+//! - [`fast`]: the latency-optimised closed loop with GMS friction (runtime CPU dispatch).
+//! - [`lanes`]: batches of runs of the same structure advanced 4 per SIMD vector.
 //! - [`batch`]: many closed-loop runs at once on all cores (sweeps, Monte Carlo), stacked outputs.
 //! - [`reference`]: reference problems (the paper's axis, EMPS) shared by tests and benchmarks.
 
@@ -19,6 +21,8 @@ pub mod closed_loop;
 pub mod control;
 pub mod effects;
 pub mod error;
+pub mod fast;
+pub mod lanes;
 pub mod friction;
 pub mod numeric;
 pub mod plant;

@@ -1,15 +1,47 @@
 //! Numerical helpers for the closed loop's per-step dependency chain: a fused multiply-add where
-//! the CPU has one, and a checked polynomial that replaces a division and an exponential.
+//! the CPU has one, run-time CPU detection for the kernels compiled twice, and a checked
+//! polynomial that replaces a division and an exponential.
 
-/// `a * b + c` as one fused instruction where the CPU has it (the build targets the host CPU, see
-/// `.cargo/config.toml`), as two operations otherwise (`f64::mul_add` without hardware FMA is a
-/// slow library call).
+/// `a * b + c` as one fused instruction where the build targets a CPU with FMA (a local
+/// `target-cpu=native` build), as two operations otherwise (`f64::mul_add` without hardware FMA
+/// is a slow library call). The hot kernels use [`fma_if`] under run-time dispatch instead.
 #[inline(always)]
 pub fn fma(a: f64, b: f64, c: f64) -> f64 {
-    if cfg!(target_feature = "fma") {
+    fma_if::<{ cfg!(target_feature = "fma") }>(a, b, c)
+}
+
+/// `a * b + c`, fused when `F` (only inside functions compiled with the `fma` target feature:
+/// elsewhere `mul_add` is a library call), two roundings otherwise.
+#[inline(always)]
+pub fn fma_if<const F: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if F {
         a.mul_add(b, c)
     } else {
         a * b + c
+    }
+}
+
+/// Whether this CPU runs the AVX2 + FMA instantiations of the hot kernels (checked once; the
+/// portable build runs everywhere and takes the fast path where it exists).
+#[inline]
+pub fn has_avx2_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::sync::atomic::{AtomicU8, Ordering};
+        static STATE: AtomicU8 = AtomicU8::new(0);
+        match STATE.load(Ordering::Relaxed) {
+            1 => false,
+            2 => true,
+            _ => {
+                let yes = std::env::var_os("GMSFRIC_NO_AVX2").is_none() && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+                STATE.store(if yes { 2 } else { 1 }, Ordering::Relaxed);
+                yes
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
@@ -76,6 +108,11 @@ impl UnitIntervalPoly {
             })
             .fold(0.0f64, f64::max);
         (worst <= tol).then_some(poly)
+    }
+
+    /// Monomial coefficients in `t = 2 u - 1`, lowest degree first.
+    pub fn coefficients(&self) -> &[f64; 16] {
+        &self.coef
     }
 
     /// The polynomial at `u` (meant for `u` in `[0, 1]`).

@@ -77,6 +77,12 @@ impl Stribeck {
         (crate::numeric::fma(self.fs - self.fc, e, self.fc), e)
     }
 
+    /// The exponent `p = |v / vs|^delta` beyond which `s(v) == fc` exactly (`-inf` for a flat
+    /// curve, `inf` when `fc` is zero).
+    pub fn settled_exponent(&self) -> f64 {
+        self.p_cut
+    }
+
     /// The largest value of `s` (the level a sticking contact can hold).
     pub fn max_level(&self) -> f64 {
         self.fs.max(self.fc)

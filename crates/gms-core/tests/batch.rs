@@ -137,3 +137,42 @@ fn friction_batch_equals_single_runs() {
     let err = simulate_position_batch(&models, &t, &[&x, &x, &bad], &BatchOptions::default()).unwrap_err();
     assert_eq!(err.run, 2);
 }
+
+/// A sweep of friction levels and gains: 9 runs of one structure, so 8 go two vectors of 4 lanes
+/// and one runs alone.
+fn lane_jobs(r: &[f64]) -> Vec<Job<'_>> {
+    (0..9)
+        .map(|i| {
+            let level = 0.5 + 0.125 * i as f64;
+            let g = reference::paper_gms();
+            let st = gms_core::Stribeck::new(g.stribeck.fc * level, g.stribeck.fs * level, g.stribeck.vs, 1.0).unwrap();
+            let g = gms_core::Gms::new(st, g.k.clone(), g.alpha.clone(), g.c, g.sigma, g.slip_law).unwrap();
+            let pid = Pid::new(5.0e5 * (1.0 + 0.05 * i as f64), 2.5e6, 1.0e3, 5e-4, -10.0, 10.0).unwrap();
+            Job { axis: Axis::new(reference::paper_plant(), Some(FrictionModel::Gms(g)), None).unwrap(), controller: Some(ControllerModel::Pid(pid)), input: ClosedLoopInput::new(r, DT) }
+        })
+        .collect()
+}
+
+#[test]
+fn runs_in_simd_lanes_match_single_runs_and_do_not_depend_on_threads() {
+    let r = reference::paper_sine(40_000, DT, 2e-4, 2.0);
+    let js = lane_jobs(&r);
+    let record = Record { error: true, ..Record::ALL };
+    let base = simulate_batch_stacked(&js, &record, &BatchOptions { threads: Some(1), ..Default::default() }).unwrap();
+    let two = simulate_batch_stacked(&js, &record, &BatchOptions { threads: Some(2), ..Default::default() }).unwrap();
+    for field in [|o: &gms_core::batch::BatchOutput| o.position.clone(), |o: &gms_core::batch::BatchOutput| o.friction.clone(), |o: &gms_core::batch::BatchOutput| o.error.clone()] {
+        assert_eq!(field(&base), field(&two), "bit-identical across thread counts");
+    }
+    for (i, job) in js.iter().enumerate() {
+        let single = job.run().unwrap();
+        let worst = |a: &[f64], b: &[f64]| {
+            let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / scale
+        };
+        let dp = worst(base.row(&base.position, i), &single.position);
+        let df = worst(base.row(&base.friction, i), &single.friction);
+        assert!(dp < 1e-12 && df < 1e-10, "run {i}: position {dp:e}, friction {df:e} of their ranges");
+        let err: Vec<f64> = r.iter().zip(&single.position).map(|(r, x)| r - x).collect();
+        assert!(worst(base.row(&base.error, i), &err) < 1e-9, "run {i}: error output");
+    }
+}
