@@ -137,7 +137,7 @@ impl<'a> ClosedLoopInput<'a> {
         }
         check::non_negative("quantization", self.quantization)?;
         if self.quantization > 0.0 && !(1.0 / self.quantization).is_finite() {
-            return Err(CoreError::InvalidParameter { name: "quantization", reason: format!("{} m is too fine a resolution (its reciprocal overflows)", self.quantization) });
+            return Err(CoreError::InvalidParameter { name: "quantization", reason: format!("{} m is too fine a resolution (its reciprocal overflows)", crate::error::Num(self.quantization)) });
         }
         if self.drive_min.is_nan() || self.drive_max.is_nan() || self.drive_min >= self.drive_max {
             return Err(CoreError::InvalidParameter {
@@ -267,7 +267,7 @@ pub fn simulate_generic_into<F: FrictionElement, C: Controller>(
     let ClosedLoopBuffers { position, velocity, measured, command, friction: fric_out, error, .. } = out;
     let (mut pos, mut vel, mut meas) = (position.map(|b| &mut b[..m]), velocity.map(|b| &mut b[..m]), measured.map(|b| &mut b[..m]));
     let (mut cmd, mut fric, mut err) = (command.map(|b| &mut b[..m]), fric_out.map(|b| &mut b[..m]), error.map(|b| &mut b[..m]));
-    let mut line = DelayLine::new(d.delay_steps, 0.0, n);
+    let mut line = DelayLine::try_new(d.delay_steps, 0.0, n)?;
     // Scalars instead of 2x2 matrix types: the loop body is a handful of FMAs.
     let (p00, p01, p10, p11) = (d.phi[(0, 0)], d.phi[(0, 1)], d.phi[(1, 0)], d.phi[(1, 1)]);
     let (go0, go1, gn0, gn1) = (d.gamma_old[0], d.gamma_old[1], d.gamma_new[0], d.gamma_new[1]);
@@ -333,20 +333,13 @@ pub fn simulate_generic_into<F: FrictionElement, C: Controller>(
             }
             xp = fma(-gf0, f, free_p);
             xv = fma(-gf1, f, free_v);
-            // A NaN or inf anywhere makes the sum non-finite: one test per step.
+            // A NaN or inf anywhere makes the sum non-finite: one test per step (the sum of
+            // large finite values can overflow too: then every term is looked at).
             if !(xp + xv + f + u + y).is_finite() {
-                let quantity = if !u.is_finite() {
-                    "command"
-                } else if !y.is_finite() {
-                    "measured position"
-                } else if !f.is_finite() {
-                    "friction"
-                } else if !xv.is_finite() {
-                    "velocity"
-                } else {
-                    "position"
-                };
-                return Err(non_finite(quantity, k, dt));
+                let named = [(u, "command"), (y, "measured position"), (f, "friction"), (xv, "velocity"), (xp, "position")];
+                if let Some(&(_, quantity)) = named.iter().find(|(v, _)| !v.is_finite()) {
+                    return Err(non_finite(quantity, k, dt));
+                }
             }
         }
         start = end;
