@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _gmsfric
-from ._validate import as_array, count, number
+from ._validate import as_array, choice, count, number, show
 from .errors import InvalidInputError
 from .models import GMS, FrictionModel, LuGre, MaxwellSlip, NativeBacked, StaticFriction, native_friction
 from .system import Controller, Plant
@@ -44,6 +44,19 @@ if TYPE_CHECKING:  # pragma: no cover
     from .system import ClosedLoopResult, RunOptions
 
 SeriesKind = Literal["legendre", "fourier", "table"]
+
+
+def _floats(name: str, values: Any) -> tuple[float, ...]:
+    """A tuple of floats from a sequence (empty allowed: the core says what it needs)."""
+    if values is None or isinstance(values, (str, bytes)):
+        raise InvalidInputError(f"`{name}` must be a sequence of numbers, got {show(values)}")
+    try:
+        arr = np.atleast_1d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InvalidInputError(f"`{name}` must be numeric: {exc}") from None
+    if arr.ndim != 1:
+        raise InvalidInputError(f"`{name}` must be one-dimensional, got shape {arr.shape}")
+    return tuple(float(v) for v in arr)
 
 
 @dataclass(frozen=True)
@@ -65,10 +78,9 @@ class PositionSeries:
     values: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
-        if self.kind not in ("legendre", "fourier", "table"):
-            raise InvalidInputError(f"`kind` must be 'legendre', 'fourier' or 'table', got {self.kind!r}")
+        choice("kind", self.kind, ("legendre", "fourier", "table"))
         for name in ("coef", "periods", "values"):
-            object.__setattr__(self, name, tuple(float(v) for v in np.atleast_1d(np.asarray(getattr(self, name), dtype=float))) if len(getattr(self, name)) else ())
+            object.__setattr__(self, name, _floats(name, getattr(self, name)))
         for name in ("lo", "hi", "q0", "dq"):
             object.__setattr__(self, name, number(name, getattr(self, name)))
         object.__setattr__(self, "harmonics", count("harmonics", self.harmonics, minimum=0))
@@ -134,6 +146,9 @@ class Drift:
     d_level: float = 0.0
     d_viscous: float = 0.0
 
+    def __post_init__(self) -> None:
+        choice("shape", self.shape, ("linear", "exponential"))
+
     def core_args(self) -> tuple[str, float, float, float]:
         return (self.shape, number("scale", self.scale), number("d_level", self.d_level), number("d_viscous", self.d_viscous))
 
@@ -177,8 +192,10 @@ class Effects:
 
     def __post_init__(self) -> None:
         if self.asymmetry is not None:
-            d_level, d_viscous = self.asymmetry
-            object.__setattr__(self, "asymmetry", (number("asymmetry", d_level), number("asymmetry", d_viscous)))
+            pair = self.asymmetry
+            if isinstance(pair, (str, bytes, dict)) or np.ndim(pair) != 1 or len(pair) != 2:
+                raise InvalidInputError(f"`asymmetry` must be a (d_level, d_viscous) pair, got {show(pair)}")
+            object.__setattr__(self, "asymmetry", (number("asymmetry", pair[0]), number("asymmetry", pair[1])))
         for name, kind in (("position_force", PositionSeries), ("position_friction", PositionSeries), ("drift", Drift), ("heating", Heating), ("blocks", MaxwellSlip), ("compliance", Compliance)):
             value = getattr(self, name)
             if value is not None and not isinstance(value, kind):
@@ -218,8 +235,9 @@ class AxisUnits:
     command: str = "V"
 
     def __post_init__(self) -> None:
-        if self.kind not in ("linear", "rotary"):
-            raise InvalidInputError(f"`kind` must be 'linear' or 'rotary', got {self.kind!r}")
+        choice("kind", self.kind, ("linear", "rotary"))
+        if not isinstance(self.command, str):
+            raise InvalidInputError(f"`command` must be a unit string (V, A ...), got {show(self.command)}")
 
     @property
     def position(self) -> str:
@@ -238,7 +256,12 @@ class Covariance:
     matrix: NDArray[np.float64]
 
     def __post_init__(self) -> None:
-        m = np.asarray(self.matrix, dtype=float)
+        if isinstance(self.names, (str, bytes)) or not all(isinstance(n, str) for n in np.atleast_1d(np.asarray(self.names, dtype=object)).ravel()):
+            raise InvalidInputError(f"`names` must be a sequence of parameter paths (str), got {show(self.names)}")
+        try:
+            m = np.asarray(self.matrix, dtype=float)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise InvalidInputError(f"`matrix` must be a numeric matrix: {exc}") from None
         n = len(self.names)
         if m.shape != (n, n):
             raise InvalidInputError(f"`matrix` must be {n} x {n} for {n} names, got shape {m.shape}")
@@ -478,13 +501,18 @@ def _decode_axis(p: Any) -> AxisModel:
 
     doc = p.document
     options = doc.get("options", {}) or {}
+    if not isinstance(options, Mapping):
+        raise ModelFormatError(f"{p.source}: \"options\" must be an object, got {show(options)}")
+    provenance = doc.get("provenance", {}) or {}
+    if not isinstance(provenance, Mapping):
+        raise ModelFormatError(f"{p.source}: \"provenance\" must be an object, got {show(provenance)}")
     rotary = p.rotary
     plant = Plant(*(p.get(f"plant.{n}", _QUANTITY[f"plant.{n}"]) for n in ("a", "b", "c", "delay", "force_gain")))
     friction = None
     fkind = options.get("friction")
     if fkind is not None:
-        if fkind not in _KINDS or fkind in ("axis", "plant"):
-            raise ModelFormatError(f"{p.source}: unknown friction kind {fkind!r}")
+        if not isinstance(fkind, str) or fkind not in _KINDS or fkind in ("axis", "plant"):
+            raise ModelFormatError(f"{p.source}: unknown friction kind {show(fkind)}")
         sub = {
             "kind": fkind,
             "axis": "rotary" if rotary else "linear",
@@ -531,7 +559,7 @@ def _decode_axis(p: Any) -> AxisModel:
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(f"{p.source}: malformed covariance: {exc}") from None
     units = AxisUnits("rotary" if rotary else "linear", str(options.get("command_unit", "V")))
-    return AxisModel(plant, friction, Effects(**kw), units, cov, dict(doc.get("provenance", {}) or {}))
+    return AxisModel(plant, friction, Effects(**kw), units, cov, dict(provenance))
 
 
 def axis_document(model: AxisModel, provenance: Mapping[str, Any] | None = None) -> dict[str, Any]:

@@ -29,6 +29,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from . import units as _units
+from ._validate import show
 from .errors import DataError, InvalidInputError
 from .io import check_input_file, write_text_atomic
 from .models import GMS, LuGre, MaxwellSlip, StaticFriction, Stribeck
@@ -365,8 +366,8 @@ def _decode_body(doc: Any, source: str) -> Any:
     if not isinstance(doc, Mapping):
         raise ModelFormatError(f"{source}: a model must be a JSON object")
     kind = doc.get("kind")
-    if kind not in _KINDS:
-        raise ModelFormatError(f"{source}: unknown model kind {kind!r}; known: {', '.join(_KINDS)}")
+    if not isinstance(kind, str) or kind not in _KINDS:
+        raise ModelFormatError(f"{source}: unknown model kind {show(kind)}; known: {', '.join(_KINDS)}")
     p = Parameters(doc, source)
     try:
         model = _KINDS[str(kind)].decode(p)

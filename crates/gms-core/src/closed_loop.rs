@@ -229,7 +229,7 @@ fn non_finite(quantity: &'static str, step: usize, dt: f64) -> CoreError {
         "command" => "check the controller gains, the reference and the drive limits",
         "friction" => "check the friction parameters against the step size",
         "measured position" => "check the measurement noise and the quantisation",
-        _ => "the loop is probably unstable at these gains or this step size",
+        _ => "the axis left the finite range: an unstable loop (gains, step size) or inputs too large",
     };
     CoreError::NonFiniteOutput { quantity, step, time: step as f64 * dt, hint }
 }

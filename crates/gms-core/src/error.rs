@@ -55,7 +55,7 @@ pub enum CoreError {
     NonFiniteOutput { quantity: &'static str, step: usize, time: f64, hint: &'static str },
 
     /// A computation would need more memory (or more work) than is reasonable for its input.
-    #[error("`{name}` would need {} {what}, more than the limit of {}: {reason}", Num(*.requested), Num(*.limit))]
+    #[error("`{name}` would need {}{}: {reason}", Amount(*.requested, what), Limit(*.limit, what))]
     TooLarge { name: &'static str, requested: f64, limit: f64, what: &'static str, reason: &'static str },
 
     /// The caller asked the computation to stop (Ctrl-C).
@@ -75,6 +75,43 @@ impl std::fmt::Display for Num {
             write!(f, "{}", self.0)
         } else {
             write!(f, "{:e}", self.0)
+        }
+    }
+}
+
+/// A quantity with its unit; bytes in binary multiples (`7.45 GiB`).
+struct Amount<'a>(f64, &'a str);
+
+impl std::fmt::Display for Amount<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.1 != "bytes" || !self.0.is_finite() || self.0 < 1024.0 {
+            return write!(f, "{} {}", Num(self.0), self.1);
+        }
+        let mut v = self.0;
+        for unit in ["KiB", "MiB", "GiB", "TiB", "PiB", "EiB"] {
+            v /= 1024.0;
+            if v < 1024.0 || unit == "EiB" {
+                // Three significant digits, as the Python side writes sizes.
+                let decimals = (2 - v.log10().floor() as i32).max(0) as usize;
+                let text = format!("{v:.decimals$}");
+                let text = if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.') } else { &text };
+                return write!(f, "{text} {unit}");
+            }
+        }
+        unreachable!("the loop returns at EiB")
+    }
+}
+
+/// `, more than the limit of ...`, left out when there is no stated limit (NaN: the allocation
+/// itself failed).
+struct Limit<'a>(f64, &'a str);
+
+impl std::fmt::Display for Limit<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.is_nan() {
+            Ok(())
+        } else {
+            write!(f, ", more than the limit of {}", Amount(self.0, self.1))
         }
     }
 }
@@ -194,13 +231,7 @@ pub mod check {
 /// A zeroed vector of `n` doubles, allocated fallibly (calloc: pages appear as they are written),
 /// so that an impossible size becomes [`CoreError::TooLarge`] instead of an abort.
 pub fn try_zeroed(name: &'static str, n: usize) -> Result<Vec<f64>> {
-    let too_large = || CoreError::TooLarge {
-        name,
-        requested: n as f64 * 8.0,
-        limit: isize::MAX as f64,
-        what: "bytes",
-        reason: "the allocation failed (not enough memory)",
-    };
+    let too_large = || CoreError::TooLarge { name, requested: n as f64 * 8.0, limit: f64::NAN, what: "bytes", reason: "the allocation failed (not enough memory)" };
     if n == 0 {
         return Ok(Vec::new());
     }
@@ -214,5 +245,27 @@ pub fn try_zeroed(name: &'static str, n: usize) -> Result<Vec<f64>> {
             return Err(too_large());
         }
         Ok(Vec::from_raw_parts(ptr, n, n))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_write_numbers_and_sizes_briefly() {
+        let e = CoreError::NotPositive { name: "dt", value: 5e-324 };
+        assert_eq!(e.to_string(), "`dt` must be > 0, got 5e-324");
+        assert_eq!(Num(1e44).to_string(), "1e44");
+        assert_eq!(Num(0.001).to_string(), "0.001");
+        assert_eq!(Num(-2.5).to_string(), "-2.5");
+        let big = CoreError::TooLarge { name: "outputs", requested: 3.2e10, limit: 2.0e10, what: "bytes", reason: "record fewer outputs" };
+        assert_eq!(big.to_string(), "`outputs` would need 29.8 GiB, more than the limit of 18.6 GiB: record fewer outputs");
+        let failed = try_zeroed("position", usize::MAX / 16).unwrap_err();
+        assert!(failed.to_string().starts_with("`position` would need 8 EiB: the allocation failed"), "{failed}");
+        let lag = CoreError::TooLarge { name: "delay", requested: 1e19, limit: 16777216.0, what: "samples", reason: "too long" };
+        assert_eq!(lag.to_string(), "`delay` would need 1e19 samples, more than the limit of 16777216 samples: too long");
+        let nan_time = CoreError::NonFiniteOutput { quantity: "force", step: 3, time: f64::NAN, hint: "h" };
+        assert_eq!(nan_time.to_string(), "simulation produced a non-finite force at step 3; h");
     }
 }
