@@ -10,6 +10,7 @@ import re
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 
@@ -233,11 +234,29 @@ def test_times_whose_step_overflows_are_refused():
         (lambda: g.GMS.from_break_forces([1e5], [1.0], 1.0, scale=np.ones(2)), r"`scale` must be one of 'stribeck', 'sum'"),
         (lambda: g.GMS(ST, [1e5], [1.0], 1.0, slip_law=None), r"`slip_law` must be one of 'time', 'displacement', got None"),
         (lambda: g.PID(1.0).frequency_response([1.0], 0.0), r"`dt` must be > 0"),
+        (lambda: g.simulate_closed_loop(g.Plant(1, 1, 0), None, g.PID(1), np.ones(4), 1e-3, record=np.float32(0)),
+         r"`record` must be output names among"),
+        (lambda: g.simulate_closed_loop(g.Plant(1, 1, 0), None, g.PID(1), np.ones(4), 1e-3, record=[np.ones(2)]),
+         r"`record` has an unknown output an array of shape \(2,\)"),
+        (lambda: g.simulate_closed_loop(g.Plant(1, 1, 0), None, g.PID(1), np.ones(4), 1e-3, every=10**60),
+         r"`every` = an integer of 61 digits is too large"),
+        (lambda: g.PositionSeries.fourier([1e-3], 2.4e160, [1.0, 2.0]), r"`harmonics` = an integer of 161 digits is too large"),
+        (lambda: g.save_model(g.Plant(1, 1, 0), os.path.join(tempfile.gettempdir(), "gmsfric-unused.json"), provenance=1.5), r"`provenance` must be a dict, got 1.5"),
+        (lambda: g.AxisModel(g.Plant(1, 1, 0)).with_parameters({"plant.a": None}), r"`plant.a` must be a number, got None"),
+        (lambda: g.AxisModel(g.Plant(1, 1, 0)).with_parameters({1: 2.0}), r"`values` has a parameter path that is not a string: 1"),
+        (lambda: g.AxisModel(g.Plant(1, 1, 0), covariance=g.Covariance(("plant.b",), [[1.0]])).sample(10**18),
+         r"`n` must be between 1 and 1000000"),
     ],
 )
 def test_bad_arguments_raise_invalid_input_naming_them(call, match):
     with pytest.raises(g.InvalidInputError, match=match):
         call()
+
+
+def test_discrete_transfer_functions_take_any_positive_step_type():
+    pytest.importorskip("control")
+    tf = g.PID(1.0, 0.5).to_control(dt=np.int64(2))
+    assert tf.dt == 2.0 and np.all(np.isfinite(tf.num[0][0]))
 
 
 def test_model_documents_with_hostile_fields_are_format_errors():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any, Sequence
 
 import numpy as np
@@ -80,7 +81,8 @@ def finite(name: str, value: float) -> float:
 
 
 def count(name: str, value: Any, *, minimum: int = 1, maximum: int | None = None) -> int:
-    """A whole number in ``[minimum, maximum]`` (bools and non-integral floats refused)."""
+    """A whole number in ``[minimum, maximum]`` (bools and non-integral floats refused); without
+    ``maximum``, at most ``sys.maxsize`` (what the core can hold)."""
     if isinstance(value, (bool, np.bool_)):
         raise InvalidInputError(f"`{name}` must be an integer, got {show(value)}")
     try:
@@ -93,6 +95,8 @@ def count(name: str, value: Any, *, minimum: int = 1, maximum: int | None = None
     if as_int < minimum or (maximum is not None and as_int > maximum):
         bound = f"between {minimum} and {maximum}" if maximum is not None else f">= {minimum}"
         raise InvalidInputError(f"`{name}` must be {bound}, got {show(as_int)}")
+    if maximum is None and as_int > sys.maxsize:
+        raise InvalidInputError(f"`{name}` = {show(as_int)} is too large (at most {sys.maxsize})")
     return as_int
 
 

@@ -280,6 +280,10 @@ class Covariance:
         return {n: float(np.sqrt(max(self.matrix[i, i], 0.0))) for i, n in enumerate(self.names)}
 
 
+#: Most models :meth:`AxisModel.sample` draws in one call (each is a validated model object).
+MAX_SAMPLES = 1_000_000
+
+
 @dataclass(frozen=True)
 class AxisModel(NativeBacked):
     """A servo axis: plant, friction model, effects, units, covariance and provenance.
@@ -353,18 +357,22 @@ class AxisModel(NativeBacked):
     def with_parameters(self, values: Mapping[str, float]) -> "AxisModel":
         """A copy with the parameters at ``values`` (paths as :meth:`parameters`) changed; the
         new model is validated by the core like any other."""
+        if not isinstance(values, Mapping):
+            raise InvalidInputError(f"`values` must be a dict of parameter path -> value, got {show(values)}")
         model: Any = self
         for path, value in values.items():
-            model = _replace(model, path.split("."), float(value), path)
+            if not isinstance(path, str):
+                raise InvalidInputError(f"`values` has a parameter path that is not a string: {show(path)}")
+            model = _replace(model, path.split("."), number(path, value), path)
         return model  # type: ignore[no-any-return]
 
     def sample(self, n: int, *, seed: int | None = None) -> list["AxisModel"]:
-        """``n`` models with parameters drawn from the covariance (Monte Carlo over the
-        identification's uncertainty). Draws that the core refuses (a negative stiffness, say)
-        are drawn again."""
+        """``n`` models (at most ``MAX_SAMPLES``) with parameters drawn from the covariance (Monte
+        Carlo over the identification's uncertainty). Draws that the core refuses (a negative
+        stiffness, say) are drawn again."""
         if self.covariance is None:
             raise InvalidInputError("this model has no covariance to sample from")
-        n = count("n", n, minimum=1)
+        n = count("n", n, minimum=1, maximum=MAX_SAMPLES)
         rng = np.random.default_rng(seed)
         names = self.covariance.names
         base = self.parameters()

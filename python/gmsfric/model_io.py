@@ -306,6 +306,8 @@ def model_to_dict(
         if m.shape != (len(names), len(names)) or len(cov_units) != len(names):
             raise InvalidInputError(f"`covariance`: {len(names)} names and units need a {len(names)}x{len(names)} matrix, got {m.shape}")
         doc["covariance"] = {"names": list(names), "units": list(cov_units), "matrix": jsonable(m)}
+    if provenance is not None and not isinstance(provenance, Mapping):
+        raise InvalidInputError(f"`provenance` must be a dict, got {show(provenance)}")
     doc["provenance"] = dict(provenance or {})
     return doc
 

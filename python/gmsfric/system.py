@@ -156,7 +156,7 @@ class Plant(NativeBacked):
             raise InvalidInputError("give either `pade_order` (continuous time) or `dt` (discrete time), not both")
         if dt is not None:
             num, den = self._discrete_polynomials(dt)
-            return control.tf(num, den, finite("dt", dt))
+            return control.tf(num, den, step("dt", dt))
         tf = control.tf([self.a], [1.0, self.b, self.c])
         if self.delay == 0:
             return tf
@@ -263,7 +263,7 @@ class PID(NativeBacked):
         control = _control_module()
         if dt is not None:
             num, den = self._discrete_polynomials(dt)
-            return control.tf(num, den, dt)
+            return control.tf(num, den, step("dt", dt))
         s = control.tf("s")
         return self.kp + self.ki / s + self.kd * s / (self.tf * s + 1)
 
