@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any
+import sys
+from typing import Any, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -39,17 +40,37 @@ def same_length(name: str, arr: NDArray[Any], other: str, n: int) -> None:
         raise InvalidInputError(f"`{name}` has length {arr.size} but `{other}` has length {n}: they must match")
 
 
+def show(value: Any) -> str:
+    """A short form of a bad value for a message (a 400-digit integer or a long array is not
+    printed whole)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**20:
+        return f"an integer of {len(str(abs(value)))} digits"
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape} ({value.dtype})"
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def choice(name: str, value: Any, options: Sequence[str]) -> str:
+    """``value`` if it is one of the strings ``options``; anything else (another string, a
+    number, an array) raises ``InvalidInputError`` naming ``name`` and the options."""
+    if not isinstance(value, str) or value not in options:
+        listed = ", ".join(repr(o) for o in options)
+        raise InvalidInputError(f"`{name}` must be one of {listed}, got {show(value)}")
+    return value
+
+
 def number(name: str, value: Any) -> float:
     """``value`` as a float (NaN and inf pass: the core names them); anything that is not a real
     number, or does not fit a double, raises ``InvalidInputError`` naming ``name``."""
     if isinstance(value, (bool, np.bool_)) or isinstance(value, (complex, np.complexfloating)):
-        raise InvalidInputError(f"`{name}` must be a real number, got {value!r}")
+        raise InvalidInputError(f"`{name}` must be a real number, got {show(value)}")
     try:
         return float(value)
     except OverflowError:
-        raise InvalidInputError(f"`{name}` = {value!r} does not fit a double") from None
+        raise InvalidInputError(f"`{name}` = {show(value)} does not fit a double") from None
     except (TypeError, ValueError):
-        raise InvalidInputError(f"`{name}` must be a number, got {value!r}") from None
+        raise InvalidInputError(f"`{name}` must be a number, got {show(value)}") from None
 
 
 def finite(name: str, value: float) -> float:
@@ -60,19 +81,22 @@ def finite(name: str, value: float) -> float:
 
 
 def count(name: str, value: Any, *, minimum: int = 1, maximum: int | None = None) -> int:
-    """A whole number in ``[minimum, maximum]`` (bools and non-integral floats refused)."""
+    """A whole number in ``[minimum, maximum]`` (bools and non-integral floats refused); without
+    ``maximum``, at most ``sys.maxsize`` (what the core can hold)."""
     if isinstance(value, (bool, np.bool_)):
-        raise InvalidInputError(f"`{name}` must be an integer, got {value!r}")
+        raise InvalidInputError(f"`{name}` must be an integer, got {show(value)}")
     try:
         as_int = int(value)
         whole = as_int == value
     except (TypeError, ValueError, OverflowError):
-        raise InvalidInputError(f"`{name}` must be an integer, got {value!r}") from None
+        raise InvalidInputError(f"`{name}` must be an integer, got {show(value)}") from None
     if not whole:
-        raise InvalidInputError(f"`{name}` must be an integer, got {value!r}")
+        raise InvalidInputError(f"`{name}` must be an integer, got {show(value)}")
     if as_int < minimum or (maximum is not None and as_int > maximum):
         bound = f"between {minimum} and {maximum}" if maximum is not None else f">= {minimum}"
-        raise InvalidInputError(f"`{name}` must be {bound}, got {as_int}")
+        raise InvalidInputError(f"`{name}` must be {bound}, got {show(as_int)}")
+    if maximum is None and as_int > sys.maxsize:
+        raise InvalidInputError(f"`{name}` = {show(as_int)} is too large (at most {sys.maxsize})")
     return as_int
 
 
@@ -80,6 +104,14 @@ def positive(name: str, value: float) -> float:
     v = finite(name, value)
     if v <= 0:
         raise InvalidInputError(f"`{name}` must be > 0, got {v}")
+    return v
+
+
+def step(name: str, value: float) -> float:
+    """A time step (s): positive, finite, not subnormal, with a finite reciprocal (the core's rule)."""
+    v = positive(name, value)
+    if v < np.finfo(np.float64).tiny or not np.isfinite(1.0 / v):
+        raise InvalidInputError(f"`{name}` = {v:g} s is too small a step (its reciprocal overflows)")
     return v
 
 

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _gmsfric
-from ._validate import as_array, count, number
+from ._validate import as_array, choice, count, number, show
 from .errors import InvalidInputError
 from .models import GMS, FrictionModel, LuGre, MaxwellSlip, NativeBacked, StaticFriction, native_friction
 from .system import Controller, Plant
@@ -44,6 +44,19 @@ if TYPE_CHECKING:  # pragma: no cover
     from .system import ClosedLoopResult, RunOptions
 
 SeriesKind = Literal["legendre", "fourier", "table"]
+
+
+def _floats(name: str, values: Any) -> tuple[float, ...]:
+    """A tuple of floats from a sequence (empty allowed: the core says what it needs)."""
+    if values is None or isinstance(values, (str, bytes)):
+        raise InvalidInputError(f"`{name}` must be a sequence of numbers, got {show(values)}")
+    try:
+        arr = np.atleast_1d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InvalidInputError(f"`{name}` must be numeric: {exc}") from None
+    if arr.ndim != 1:
+        raise InvalidInputError(f"`{name}` must be one-dimensional, got shape {arr.shape}")
+    return tuple(float(v) for v in arr)
 
 
 @dataclass(frozen=True)
@@ -65,10 +78,9 @@ class PositionSeries:
     values: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
-        if self.kind not in ("legendre", "fourier", "table"):
-            raise InvalidInputError(f"`kind` must be 'legendre', 'fourier' or 'table', got {self.kind!r}")
+        choice("kind", self.kind, ("legendre", "fourier", "table"))
         for name in ("coef", "periods", "values"):
-            object.__setattr__(self, name, tuple(float(v) for v in np.atleast_1d(np.asarray(getattr(self, name), dtype=float))) if len(getattr(self, name)) else ())
+            object.__setattr__(self, name, _floats(name, getattr(self, name)))
         for name in ("lo", "hi", "q0", "dq"):
             object.__setattr__(self, name, number(name, getattr(self, name)))
         object.__setattr__(self, "harmonics", count("harmonics", self.harmonics, minimum=0))
@@ -134,6 +146,9 @@ class Drift:
     d_level: float = 0.0
     d_viscous: float = 0.0
 
+    def __post_init__(self) -> None:
+        choice("shape", self.shape, ("linear", "exponential"))
+
     def core_args(self) -> tuple[str, float, float, float]:
         return (self.shape, number("scale", self.scale), number("d_level", self.d_level), number("d_viscous", self.d_viscous))
 
@@ -177,8 +192,10 @@ class Effects:
 
     def __post_init__(self) -> None:
         if self.asymmetry is not None:
-            d_level, d_viscous = self.asymmetry
-            object.__setattr__(self, "asymmetry", (number("asymmetry", d_level), number("asymmetry", d_viscous)))
+            pair = self.asymmetry
+            if isinstance(pair, (str, bytes, dict)) or np.ndim(pair) != 1 or len(pair) != 2:
+                raise InvalidInputError(f"`asymmetry` must be a (d_level, d_viscous) pair, got {show(pair)}")
+            object.__setattr__(self, "asymmetry", (number("asymmetry", pair[0]), number("asymmetry", pair[1])))
         for name, kind in (("position_force", PositionSeries), ("position_friction", PositionSeries), ("drift", Drift), ("heating", Heating), ("blocks", MaxwellSlip), ("compliance", Compliance)):
             value = getattr(self, name)
             if value is not None and not isinstance(value, kind):
@@ -218,8 +235,9 @@ class AxisUnits:
     command: str = "V"
 
     def __post_init__(self) -> None:
-        if self.kind not in ("linear", "rotary"):
-            raise InvalidInputError(f"`kind` must be 'linear' or 'rotary', got {self.kind!r}")
+        choice("kind", self.kind, ("linear", "rotary"))
+        if not isinstance(self.command, str):
+            raise InvalidInputError(f"`command` must be a unit string (V, A ...), got {show(self.command)}")
 
     @property
     def position(self) -> str:
@@ -238,7 +256,12 @@ class Covariance:
     matrix: NDArray[np.float64]
 
     def __post_init__(self) -> None:
-        m = np.asarray(self.matrix, dtype=float)
+        if isinstance(self.names, (str, bytes)) or not all(isinstance(n, str) for n in np.atleast_1d(np.asarray(self.names, dtype=object)).ravel()):
+            raise InvalidInputError(f"`names` must be a sequence of parameter paths (str), got {show(self.names)}")
+        try:
+            m = np.asarray(self.matrix, dtype=float)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise InvalidInputError(f"`matrix` must be a numeric matrix: {exc}") from None
         n = len(self.names)
         if m.shape != (n, n):
             raise InvalidInputError(f"`matrix` must be {n} x {n} for {n} names, got shape {m.shape}")
@@ -255,6 +278,10 @@ class Covariance:
     def stderr(self) -> dict[str, float]:
         """Standard error of each parameter (SI)."""
         return {n: float(np.sqrt(max(self.matrix[i, i], 0.0))) for i, n in enumerate(self.names)}
+
+
+#: Most models :meth:`AxisModel.sample` draws in one call (each is a validated model object).
+MAX_SAMPLES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -330,18 +357,22 @@ class AxisModel(NativeBacked):
     def with_parameters(self, values: Mapping[str, float]) -> "AxisModel":
         """A copy with the parameters at ``values`` (paths as :meth:`parameters`) changed; the
         new model is validated by the core like any other."""
+        if not isinstance(values, Mapping):
+            raise InvalidInputError(f"`values` must be a dict of parameter path -> value, got {show(values)}")
         model: Any = self
         for path, value in values.items():
-            model = _replace(model, path.split("."), float(value), path)
+            if not isinstance(path, str):
+                raise InvalidInputError(f"`values` has a parameter path that is not a string: {show(path)}")
+            model = _replace(model, path.split("."), number(path, value), path)
         return model  # type: ignore[no-any-return]
 
     def sample(self, n: int, *, seed: int | None = None) -> list["AxisModel"]:
-        """``n`` models with parameters drawn from the covariance (Monte Carlo over the
-        identification's uncertainty). Draws that the core refuses (a negative stiffness, say)
-        are drawn again."""
+        """``n`` models (at most ``MAX_SAMPLES``) with parameters drawn from the covariance (Monte
+        Carlo over the identification's uncertainty). Draws that the core refuses (a negative
+        stiffness, say) are drawn again."""
         if self.covariance is None:
             raise InvalidInputError("this model has no covariance to sample from")
-        n = count("n", n, minimum=1)
+        n = count("n", n, minimum=1, maximum=MAX_SAMPLES)
         rng = np.random.default_rng(seed)
         names = self.covariance.names
         base = self.parameters()
@@ -478,13 +509,18 @@ def _decode_axis(p: Any) -> AxisModel:
 
     doc = p.document
     options = doc.get("options", {}) or {}
+    if not isinstance(options, Mapping):
+        raise ModelFormatError(f"{p.source}: \"options\" must be an object, got {show(options)}")
+    provenance = doc.get("provenance", {}) or {}
+    if not isinstance(provenance, Mapping):
+        raise ModelFormatError(f"{p.source}: \"provenance\" must be an object, got {show(provenance)}")
     rotary = p.rotary
     plant = Plant(*(p.get(f"plant.{n}", _QUANTITY[f"plant.{n}"]) for n in ("a", "b", "c", "delay", "force_gain")))
     friction = None
     fkind = options.get("friction")
     if fkind is not None:
-        if fkind not in _KINDS or fkind in ("axis", "plant"):
-            raise ModelFormatError(f"{p.source}: unknown friction kind {fkind!r}")
+        if not isinstance(fkind, str) or fkind not in _KINDS or fkind in ("axis", "plant"):
+            raise ModelFormatError(f"{p.source}: unknown friction kind {show(fkind)}")
         sub = {
             "kind": fkind,
             "axis": "rotary" if rotary else "linear",
@@ -531,7 +567,7 @@ def _decode_axis(p: Any) -> AxisModel:
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(f"{p.source}: malformed covariance: {exc}") from None
     units = AxisUnits("rotary" if rotary else "linear", str(options.get("command_unit", "V")))
-    return AxisModel(plant, friction, Effects(**kw), units, cov, dict(doc.get("provenance", {}) or {}))
+    return AxisModel(plant, friction, Effects(**kw), units, cov, dict(provenance))
 
 
 def axis_document(model: AxisModel, provenance: Mapping[str, Any] | None = None) -> dict[str, Any]:

@@ -29,6 +29,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from . import units as _units
+from ._validate import show
 from .errors import DataError, InvalidInputError
 from .io import check_input_file, write_text_atomic
 from .models import GMS, LuGre, MaxwellSlip, StaticFriction, Stribeck
@@ -305,6 +306,8 @@ def model_to_dict(
         if m.shape != (len(names), len(names)) or len(cov_units) != len(names):
             raise InvalidInputError(f"`covariance`: {len(names)} names and units need a {len(names)}x{len(names)} matrix, got {m.shape}")
         doc["covariance"] = {"names": list(names), "units": list(cov_units), "matrix": jsonable(m)}
+    if provenance is not None and not isinstance(provenance, Mapping):
+        raise InvalidInputError(f"`provenance` must be a dict, got {show(provenance)}")
     doc["provenance"] = dict(provenance or {})
     return doc
 
@@ -365,8 +368,8 @@ def _decode_body(doc: Any, source: str) -> Any:
     if not isinstance(doc, Mapping):
         raise ModelFormatError(f"{source}: a model must be a JSON object")
     kind = doc.get("kind")
-    if kind not in _KINDS:
-        raise ModelFormatError(f"{source}: unknown model kind {kind!r}; known: {', '.join(_KINDS)}")
+    if not isinstance(kind, str) or kind not in _KINDS:
+        raise ModelFormatError(f"{source}: unknown model kind {show(kind)}; known: {', '.join(_KINDS)}")
     p = Parameters(doc, source)
     try:
         model = _KINDS[str(kind)].decode(p)

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _gmsfric, curves
-from ._validate import as_array, number, same_length
+from ._validate import as_array, choice, number, same_length
 from .errors import InvalidInputError
 
 SlipLaw = Literal["time", "displacement"]
@@ -163,8 +163,7 @@ class GMS(NativeBacked):
         object.__setattr__(self, "alpha", _vector("alpha", self.alpha))
         object.__setattr__(self, "c", number("c", self.c))
         object.__setattr__(self, "sigma", number("sigma", self.sigma))
-        if not isinstance(self.slip_law, str):
-            raise InvalidInputError(f"`slip_law` must be 'time' or 'displacement', got {self.slip_law!r}")
+        choice("slip_law", self.slip_law, ("time", "displacement"))
         spec = _gmsfric.FrictionSpec.gms(*self.stribeck.params, list(self.k), list(self.alpha), self.c, self.sigma, self.slip_law)
         object.__setattr__(self, "_native", spec)
 
@@ -188,6 +187,9 @@ class GMS(NativeBacked):
         ``sum W_i`` is the break-away force), keeping its ``fc/fs`` ratio.  Without a
         ``stribeck`` the level is constant at ``sum(w)`` (a Maxwell-slip-like GMS).
         """
+        choice("scale", scale, ("stribeck", "sum"))
+        if stribeck is not None:
+            _check_type("stribeck", stribeck, Stribeck)
         w_arr = as_array("w", w)
         if np.any(w_arr < 0) or not w_arr.sum() > 0:
             raise InvalidInputError("`w` (break forces) must be >= 0 with a positive sum")
@@ -197,8 +199,7 @@ class GMS(NativeBacked):
         elif scale == "sum":
             ratio = total / stribeck.fs if stribeck.fs > 0 else 1.0
             stribeck = Stribeck(stribeck.fc * ratio, total, stribeck.vs, stribeck.delta)
-        elif scale != "stribeck":
-            raise InvalidInputError(f"`scale` must be 'stribeck' or 'sum', got {scale!r}")
+
         return cls(stribeck, k, w_arr / total, c, sigma, slip_law)
 
     @property

@@ -8,13 +8,13 @@ turned into the core's one input description by :func:`run_inputs`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar, Iterator, Mapping, Optional, Sequence, TypedDict, Union
+from typing import TYPE_CHECKING, Any, ClassVar, Iterable, Iterator, Mapping, Optional, Sequence, TypedDict, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _gmsfric
-from ._validate import as_array, count, finite, number
+from ._validate import as_array, count, finite, number, show, step
 from .errors import InvalidInputError, SimulationError
 from .models import FrictionModel, NativeBacked, native_friction
 
@@ -101,18 +101,15 @@ class Plant(NativeBacked):
         """
         f_arr = as_array("f", f)
         if dt is None:
-            s = 2j * np.pi * f_arr
             with np.errstate(all="ignore"):
+                s = 2j * np.pi * f_arr
                 h = self.a / (s**2 + self.b * s + self.c) * np.exp(-s * self.delay)
         else:
             num, den = self._discrete_polynomials(dt)
             z = np.exp(2j * np.pi * f_arr * dt)
             with np.errstate(all="ignore"):
                 h = np.polyval(num, z) / np.polyval(den, z)
-        bad = ~np.isfinite(h)
-        if bad.any():
-            raise InvalidInputError(f"`f` = {f_arr[bad][0]} Hz gives a non-finite response (frequency out of range)")
-        return h
+        return _finite_response(h, f_arr)
 
     def _discrete_polynomials(self, dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Numerator and denominator (in ``z``, highest power first) of the ZOH-sampled plant.
@@ -159,7 +156,7 @@ class Plant(NativeBacked):
             raise InvalidInputError("give either `pade_order` (continuous time) or `dt` (discrete time), not both")
         if dt is not None:
             num, den = self._discrete_polynomials(dt)
-            return control.tf(num, den, finite("dt", dt))
+            return control.tf(num, den, step("dt", dt))
         tf = control.tf([self.a], [1.0, self.b, self.c])
         if self.delay == 0:
             return tf
@@ -188,6 +185,14 @@ class Plant(NativeBacked):
         if num.size != 1 or den.size != 3 or den[0] == 0:
             raise InvalidInputError(f"`tf` must be a / (s^2 + b s + c), got numerator {num.tolist()} and denominator {den.tolist()}")
         return cls(num[0] / den[0], den[1] / den[0], den[2] / den[0], delay, force_gain)
+
+
+def _finite_response(h: NDArray[np.complex128], f: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """``h``, or ``InvalidInputError`` naming the first frequency whose response is not finite."""
+    bad = ~np.isfinite(h)
+    if bad.any():
+        raise InvalidInputError(f"`f` = {f[bad][0]:g} Hz gives a non-finite response (a pole there, or a frequency out of range)")
+    return h
 
 
 def _limits(u_min: Any, u_max: Any) -> tuple[float, float]:
@@ -226,20 +231,30 @@ class PID(NativeBacked):
         object.__setattr__(self, "_native", _gmsfric.ControllerSpec.pid(self.kp, self.ki, self.kd, self.tf, lo, hi))
 
     def frequency_response(self, f: ArrayLike, dt: float) -> NDArray[np.complex128]:
-        """Response of the discrete PID running at ``dt`` (limits ignored) at frequencies ``f``."""
+        """Response of the discrete PID running at ``dt`` (limits ignored) at frequencies ``f``.
+
+        A frequency where the response is infinite (0 Hz with an integrator) or overflows
+        raises ``InvalidInputError`` naming it.
+        """
         num, den = self._discrete_polynomials(dt)
-        z = np.exp(2j * np.pi * as_array("f", f) * dt)
-        return np.polyval(num, z) / np.polyval(den, z)
+        f_arr = as_array("f", f)
+        with np.errstate(all="ignore"):
+            h = np.polyval(num, np.exp(2j * np.pi * f_arr * dt)) / np.polyval(den, np.exp(2j * np.pi * f_arr * dt))
+        return _finite_response(h, f_arr)
 
     def _discrete_polynomials(self, dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``C(z) = kp + ki dt z / (z - 1) + kd (z - 1) / ((tf + dt) z - tf)``, the exact transfer
         function of the core's update (integral updated before use, backward-Euler filter)."""
-        dt = finite("dt", dt)
+        dt = step("dt", dt)
         p = np.polynomial.polynomial
         d1 = np.array([-1.0, 1.0])  # z - 1, low powers first
         d2 = np.array([-self.tf, self.tf + dt])  # (tf + dt) z - tf
-        num = p.polyadd(p.polyadd(self.kp * p.polymul(d1, d2), self.ki * dt * p.polymul([0.0, 1.0], d2)), self.kd * p.polymul(d1, d1))
-        den = p.polymul(d1, d2)
+        with np.errstate(all="ignore"):
+            num = p.polyadd(p.polyadd(self.kp * p.polymul(d1, d2), self.ki * dt * p.polymul([0.0, 1.0], d2)), self.kd * p.polymul(d1, d1))
+            den = p.polymul(d1, d2)
+        if not (np.isfinite(num).all() and np.isfinite(den).all()):
+            raise InvalidInputError(f"the PID's discrete transfer function overflows at a step of {dt:g} s (gains kp = {self.kp:g}, "
+                                    f"ki = {self.ki:g}, kd = {self.kd:g}, tf = {self.tf:g})")
         return num[::-1], den[::-1]
 
     def to_control(self, dt: float | None = None) -> Any:
@@ -248,7 +263,7 @@ class PID(NativeBacked):
         control = _control_module()
         if dt is not None:
             num, den = self._discrete_polynomials(dt)
-            return control.tf(num, den, dt)
+            return control.tf(num, den, step("dt", dt))
         s = control.tf("s")
         return self.kp + self.ki / s + self.kd * s / (self.tf * s + 1)
 
@@ -433,10 +448,14 @@ def run_inputs(reference: ArrayLike | None, n_runs: int, options: Mapping[str, A
     lo, hi = _drive_limits(options.get("drive_limit"))
     x0 = options.get("initial_position")
     record = options.get("record", DEFAULT_RECORD)
-    record = (record,) if isinstance(record, str) else tuple(record)
+    if isinstance(record, str):
+        record = (record,)
+    if isinstance(record, (bytes, dict)) or not isinstance(record, Iterable):
+        raise InvalidInputError(f"`record` must be output names among {OUTPUTS}, got {show(record)}")
+    record = tuple(record)
     for r in record:
-        if r not in OUTPUTS:
-            raise InvalidInputError(f"`record` has an unknown output {r!r}; choose among {OUTPUTS}")
+        if not isinstance(r, str) or r not in OUTPUTS:
+            raise InvalidInputError(f"`record` has an unknown output {show(r)}; choose among {OUTPUTS}")
     inputs = {
         "reference": ref,
         **arrays,

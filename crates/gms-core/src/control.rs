@@ -4,7 +4,7 @@
 //! Controllers are built from their gains alone and learn the sample time from the simulation
 //! ([`Controller::prepare`]): the step is given once, to the run.
 
-use crate::error::{check, CoreError, Result};
+use crate::error::{check, CoreError, Num, Result};
 
 /// A discrete controller running at the simulation step.
 pub trait Controller {
@@ -24,7 +24,7 @@ fn check_limits(u_min: f64, u_max: f64) -> Result<()> {
     if u_min.is_nan() || u_max.is_nan() || u_min >= u_max {
         return Err(CoreError::InvalidParameter {
             name: "u_min",
-            reason: format!("output limits must satisfy u_min < u_max, got [{u_min}, {u_max}]"),
+            reason: format!("output limits must satisfy u_min < u_max, got [{}, {}]", Num(u_min), Num(u_max)),
         });
     }
     Ok(())
@@ -87,7 +87,7 @@ impl Controller for Pid {
         self.ki_dt = self.ki * dt;
         for (name, v) in [("kd", self.d_gain), ("ki", self.ki_dt)] {
             if !v.is_finite() {
-                return Err(CoreError::InvalidParameter { name, reason: format!("the gain overflows at a step of {dt} s") });
+                return Err(CoreError::InvalidParameter { name, reason: format!("the gain overflows at a step of {} s", Num(dt)) });
             }
         }
         Ok(())
@@ -253,7 +253,7 @@ impl Controller for PidDob {
         if self.dob_cutoff_hz * dt >= 0.5 {
             return Err(CoreError::InvalidParameter {
                 name: "dob_cutoff_hz",
-                reason: format!("the Q-filter cutoff must lie below the Nyquist frequency {} Hz, got {}", 0.5 / dt, self.dob_cutoff_hz),
+                reason: format!("the Q-filter cutoff must lie below the Nyquist frequency {} Hz, got {}", Num(0.5 / dt), Num(self.dob_cutoff_hz)),
             });
         }
         let lag = match check::samples("delay", self.delay, dt, MAX_OBSERVER_LAG)? {
@@ -272,7 +272,21 @@ impl Controller for PidDob {
         let den = [tau * tau, 2.0 * tau, 1.0];
         self.q_inv_plant = Biquad::tustin([1.0 / self.a, self.b / self.a, self.c / self.a], den, dt);
         self.q_input = Biquad::tustin([0.0, 0.0, 1.0], den, dt);
-        self.u_hist = vec![0.0; lag];
+        let coefficients = self.q_inv_plant.n.iter().chain(&self.q_inv_plant.d).chain(&self.q_input.n).chain(&self.q_input.d);
+        if !coefficients.into_iter().all(|x| x.is_finite()) {
+            return Err(CoreError::InvalidParameter {
+                name: "nominal",
+                reason: format!(
+                    "the observer's filters overflow for a / (s^2 + b s + c) with a = {}, b = {}, c = {}, a cutoff of {} Hz and a step of {} s",
+                    Num(self.a),
+                    Num(self.b),
+                    Num(self.c),
+                    Num(self.dob_cutoff_hz),
+                    Num(dt)
+                ),
+            });
+        }
+        self.u_hist = crate::error::try_zeroed("delay", lag)?;
         self.head = 0;
         Ok(())
     }

@@ -13,7 +13,7 @@
 //! step's displacement, and the friction model then sees the plant's coupling reduced by them, so
 //! stiff blocks and a stiff load stay stable at the plant's step.
 
-use crate::error::{check, CoreError, Result};
+use crate::error::{check, CoreError, Num, Result};
 use crate::friction::{Coupling, FrictionElement, MaxwellSlip};
 use crate::stribeck::LevelShift;
 use nalgebra::Matrix2;
@@ -39,7 +39,7 @@ impl PositionSeries {
                 check::finite("lo", *lo)?;
                 check::finite("hi", *hi)?;
                 if !(hi > lo) || !((hi - lo).is_normal()) {
-                    return Err(CoreError::InvalidParameter { name: "hi", reason: format!("the travel [{lo}, {hi}] must have hi > lo") });
+                    return Err(CoreError::InvalidParameter { name: "hi", reason: format!("the travel [{}, {}] must have hi > lo", Num(*lo), Num(*hi)) });
                 }
                 check::finite_array("coef", coef, 1)?;
                 if coef.len() > 64 {
@@ -225,7 +225,7 @@ impl Compliance {
                 let w = 2.0 * std::f64::consts::PI * self.fn_hz;
                 let a = Matrix2::new(0.0, 1.0, -w * w, -2.0 * self.zeta * w) * dt;
                 if !(a.abs().max() <= crate::plant::MAX_STIFFNESS_RATIO) {
-                    return Err(CoreError::InvalidParameter { name: "fn_hz", reason: format!("a {} Hz load resonance is too fast for a step of {dt} s", self.fn_hz) });
+                    return Err(CoreError::InvalidParameter { name: "fn_hz", reason: format!("a {} Hz load resonance is too fast for a step of {} s", Num(self.fn_hz), Num(dt)) });
                 }
                 let phi = a.exp();
                 self.memo = Some((dt, phi));

@@ -23,7 +23,7 @@ pub enum CoreError {
     },
 
     /// A NaN or infinite value in an input array or parameter.
-    #[error("`{name}` has a non-finite value ({value}) at index {index}")]
+    #[error("`{name}` has a non-finite value ({}) at index {index}", Num(*.value))]
     NonFinite {
         name: &'static str,
         index: usize,
@@ -31,15 +31,15 @@ pub enum CoreError {
     },
 
     /// A quantity that must be strictly positive (time step, stiffness, mass-like gain ...).
-    #[error("`{name}` must be > 0, got {value}")]
+    #[error("`{name}` must be > 0, got {}", Num(*.value))]
     NotPositive { name: &'static str, value: f64 },
 
     /// A quantity that must not be negative (viscous coefficient, Coulomb level ...).
-    #[error("`{name}` must be >= 0, got {value}")]
+    #[error("`{name}` must be >= 0, got {}", Num(*.value))]
     Negative { name: &'static str, value: f64 },
 
     /// A time vector that does not strictly increase.
-    #[error("`{name}` must be strictly increasing, but element {index} ({value}) is not larger than the one before it")]
+    #[error("`{name}` must be strictly increasing, but element {index} ({}) is not larger than the one before it", Num(*.value))]
     NotIncreasing {
         name: &'static str,
         index: usize,
@@ -51,11 +51,11 @@ pub enum CoreError {
     InvalidParameter { name: &'static str, reason: String },
 
     /// A simulated quantity left the finite range (an unstable loop, an overflowing gain ...).
-    #[error("simulation produced a non-finite {quantity} at step {step} (t = {time} s); {hint}")]
+    #[error("simulation produced a non-finite {quantity} at step {step}{}; {hint}", At(*.time))]
     NonFiniteOutput { quantity: &'static str, step: usize, time: f64, hint: &'static str },
 
     /// A computation would need more memory (or more work) than is reasonable for its input.
-    #[error("`{name}` would need {requested} {what}, more than the limit of {limit}: {reason}")]
+    #[error("`{name}` would need {}{}: {reason}", Amount(*.requested, what), Limit(*.limit, what))]
     TooLarge { name: &'static str, requested: f64, limit: f64, what: &'static str, reason: &'static str },
 
     /// The caller asked the computation to stop (Ctrl-C).
@@ -63,19 +63,85 @@ pub enum CoreError {
     Interrupted,
 }
 
+/// A number as a message shows it: plain in the everyday range, in scientific notation beyond it
+/// (`5e-324`, not 324 decimal places; `1e100`, not 101 digits).
+#[derive(Debug, Clone, Copy)]
+pub struct Num(pub f64);
+
+impl std::fmt::Display for Num {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let a = self.0.abs();
+        if a == 0.0 || !a.is_finite() || (1e-4..1e15).contains(&a) {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
+}
+
+/// A quantity with its unit; bytes in binary multiples (`7.45 GiB`).
+struct Amount<'a>(f64, &'a str);
+
+impl std::fmt::Display for Amount<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.1 != "bytes" || !self.0.is_finite() || self.0 < 1024.0 {
+            return write!(f, "{} {}", Num(self.0), self.1);
+        }
+        let mut v = self.0;
+        for unit in ["KiB", "MiB", "GiB", "TiB", "PiB", "EiB"] {
+            v /= 1024.0;
+            if v < 1024.0 || unit == "EiB" {
+                // Three significant digits, as the Python side writes sizes.
+                let decimals = (2 - v.log10().floor() as i32).max(0) as usize;
+                let text = format!("{v:.decimals$}");
+                let text = if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.') } else { &text };
+                return write!(f, "{text} {unit}");
+            }
+        }
+        unreachable!("the loop returns at EiB")
+    }
+}
+
+/// `, more than the limit of ...`, left out when there is no stated limit (NaN: the allocation
+/// itself failed).
+struct Limit<'a>(f64, &'a str);
+
+impl std::fmt::Display for Limit<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.is_nan() {
+            Ok(())
+        } else {
+            write!(f, ", more than the limit of {}", Amount(self.0, self.1))
+        }
+    }
+}
+
+/// The ` (t = ... s)` of a non-finite output, left out when the time is unknown (NaN).
+struct At(f64);
+
+impl std::fmt::Display for At {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.is_nan() {
+            Ok(())
+        } else {
+            write!(f, " (t = {} s)", Num(self.0))
+        }
+    }
+}
+
 /// Result alias used throughout the core.
 pub type Result<T> = std::result::Result<T, CoreError>;
 
 /// Input checks shared by every entry point.
 pub mod check {
-    use super::{CoreError, Result};
+    use super::{CoreError, Num, Result};
 
     /// Reject NaN / inf parameters.
     pub fn finite(name: &'static str, value: f64) -> Result<f64> {
         if value.is_finite() {
             Ok(value)
         } else {
-            Err(CoreError::InvalidParameter { name, reason: format!("must be finite, got {value}") })
+            Err(CoreError::InvalidParameter { name, reason: format!("must be finite, got {}", Num(value)) })
         }
     }
 
@@ -96,7 +162,7 @@ pub mod check {
         if (1.0 / value).is_finite() {
             Ok(value)
         } else {
-            Err(CoreError::InvalidParameter { name, reason: format!("{value} s is too small a step (its reciprocal overflows)") })
+            Err(CoreError::InvalidParameter { name, reason: format!("{} s is too small a step (its reciprocal overflows)", Num(value)) })
         }
     }
 
@@ -105,7 +171,7 @@ pub mod check {
     pub fn samples(name: &'static str, seconds: f64, dt: f64, cap: usize) -> Result<Option<usize>> {
         let steps = seconds / dt;
         if !steps.is_finite() || steps < 0.0 {
-            return Err(CoreError::InvalidParameter { name, reason: format!("{seconds} s at a step of {dt} s is not a usable number of samples") });
+            return Err(CoreError::InvalidParameter { name, reason: format!("{} s at a step of {} s is not a usable number of samples", Num(seconds), Num(dt)) });
         }
         if steps >= cap as f64 {
             return Ok(None);
@@ -143,12 +209,19 @@ pub mod check {
         }
     }
 
-    /// Finite and strictly increasing (time vectors).
+    /// Finite and strictly increasing (time vectors), with finite steps (two finite times can
+    /// be further apart than the largest double).
     pub fn increasing(name: &'static str, values: &[f64], min_len: usize) -> Result<()> {
         finite_array(name, values, min_len)?;
         for i in 1..values.len() {
             if values[i] <= values[i - 1] {
                 return Err(CoreError::NotIncreasing { name, index: i, value: values[i] });
+            }
+            if !(values[i] - values[i - 1]).is_finite() {
+                return Err(CoreError::InvalidParameter {
+                    name,
+                    reason: format!("the step from element {} ({}) to element {i} ({}) overflows", i - 1, Num(values[i - 1]), Num(values[i])),
+                });
             }
         }
         Ok(())
@@ -158,13 +231,7 @@ pub mod check {
 /// A zeroed vector of `n` doubles, allocated fallibly (calloc: pages appear as they are written),
 /// so that an impossible size becomes [`CoreError::TooLarge`] instead of an abort.
 pub fn try_zeroed(name: &'static str, n: usize) -> Result<Vec<f64>> {
-    let too_large = || CoreError::TooLarge {
-        name,
-        requested: n as f64 * 8.0,
-        limit: isize::MAX as f64,
-        what: "bytes",
-        reason: "the allocation failed (not enough memory)",
-    };
+    let too_large = || CoreError::TooLarge { name, requested: n as f64 * 8.0, limit: f64::NAN, what: "bytes", reason: "the allocation failed (not enough memory)" };
     if n == 0 {
         return Ok(Vec::new());
     }
@@ -178,5 +245,27 @@ pub fn try_zeroed(name: &'static str, n: usize) -> Result<Vec<f64>> {
             return Err(too_large());
         }
         Ok(Vec::from_raw_parts(ptr, n, n))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_write_numbers_and_sizes_briefly() {
+        let e = CoreError::NotPositive { name: "dt", value: 5e-324 };
+        assert_eq!(e.to_string(), "`dt` must be > 0, got 5e-324");
+        assert_eq!(Num(1e44).to_string(), "1e44");
+        assert_eq!(Num(0.001).to_string(), "0.001");
+        assert_eq!(Num(-2.5).to_string(), "-2.5");
+        let big = CoreError::TooLarge { name: "outputs", requested: 3.2e10, limit: 2.0e10, what: "bytes", reason: "record fewer outputs" };
+        assert_eq!(big.to_string(), "`outputs` would need 29.8 GiB, more than the limit of 18.6 GiB: record fewer outputs");
+        let failed = try_zeroed("position", usize::MAX / 16).unwrap_err();
+        assert!(failed.to_string().starts_with("`position` would need 8 EiB: the allocation failed"), "{failed}");
+        let lag = CoreError::TooLarge { name: "delay", requested: 1e19, limit: 16777216.0, what: "samples", reason: "too long" };
+        assert_eq!(lag.to_string(), "`delay` would need 1e19 samples, more than the limit of 16777216 samples: too long");
+        let nan_time = CoreError::NonFiniteOutput { quantity: "force", step: 3, time: f64::NAN, hint: "h" };
+        assert_eq!(nan_time.to_string(), "simulation produced a non-finite force at step 3; h");
     }
 }

@@ -583,7 +583,16 @@ pub fn simulate_position<F: FrictionElement>(f: &mut F, t: &[f64], x: &[f64]) ->
     for k in 1..t.len() {
         out.push(f.advance(x[k] - x[k - 1], t[k] - t[k - 1]));
     }
-    Ok(out)
+    finite_forces(out, |k| t[k] - t[0])
+}
+
+/// The forces, or the first non-finite one as an error (a position step or a parameter beyond
+/// the model's finite range).
+fn finite_forces(out: Vec<f64>, time: impl Fn(usize) -> f64) -> Result<Vec<f64>> {
+    match out.iter().position(|v| !v.is_finite()) {
+        None => Ok(out),
+        Some(step) => Err(CoreError::NonFiniteOutput { quantity: "friction force", step, time: time(step), hint: "the motion or the model's parameters are beyond its finite range" }),
+    }
 }
 
 /// Friction force along a velocity trajectory sampled at a constant step `dt` (velocity held
@@ -595,7 +604,7 @@ pub fn simulate_velocity<F: FrictionElement>(f: &mut F, dt: f64, v: &[f64]) -> R
     for &vk in v {
         out.push(f.advance(vk * dt, dt));
     }
-    Ok(out)
+    finite_forces(out, |k| k as f64 * dt)
 }
 
 fn first_force<F: FrictionElement>(f: &mut F, dt: f64, dx: f64) -> f64 {

@@ -1,7 +1,7 @@
 //! Second-order plant `Y/U = a / (s^2 + b s + c)` with an input delay (paper eq. 1), discretised
 //! exactly under a zero-order hold, including delays that are not a whole number of steps.
 
-use crate::error::{check, CoreError, Result};
+use crate::error::{check, CoreError, Num, Result};
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
 /// Continuous-time plant. State: position `y` and velocity `dy/dt`.
@@ -65,14 +65,17 @@ impl Plant {
             return Err(CoreError::InvalidParameter {
                 name: "plant",
                 reason: format!(
-                    "a/(s^2 + b s + c) with a = {}, b = {}, c = {} is too fast for a step of {h} s (|A dt| = {ratio:.3e} > {MAX_STIFFNESS_RATIO:.0e}): its discretisation is not meaningful",
-                    self.a, self.b, self.c
+                    "a/(s^2 + b s + c) with a = {}, b = {}, c = {} is too fast for a step of {} s (|A dt| = {ratio:.3e} > {MAX_STIFFNESS_RATIO:.0e}): its discretisation is not meaningful",
+                    Num(self.a),
+                    Num(self.b),
+                    Num(self.c),
+                    Num(h)
                 ),
             });
         }
         let e = m.exp();
         if e.iter().any(|x| !x.is_finite()) {
-            return Err(CoreError::InvalidParameter { name: "plant", reason: format!("the discretisation at a step of {h} s overflows") });
+            return Err(CoreError::InvalidParameter { name: "plant", reason: format!("the discretisation at a step of {} s overflows", Num(h)) });
         }
         Ok((e.fixed_view::<2, 2>(0, 0).into_owned(), Vector2::new(e[(0, 2)], e[(1, 2)])))
     }
@@ -102,14 +105,18 @@ impl Plant {
         let (phi, gamma) = self.zoh(dt)?;
         let (phi_rest, gamma_rest) = self.zoh(dt - frac)?;
         let (_, gamma_frac) = self.zoh(frac)?;
-        Ok(DiscretePlant {
-            phi,
-            gamma_old: phi_rest * gamma_frac,
-            gamma_new: gamma_rest,
-            gamma_force: gamma / self.force_gain,
-            delay_steps: whole,
-            dt,
-        })
+        let d = DiscretePlant { phi, gamma_old: phi_rest * gamma_frac, gamma_new: gamma_rest, gamma_force: gamma / self.force_gain, delay_steps: whole, dt };
+        // A tiny force gain turns a newton into an overflowing input.
+        if !d.gamma_force.iter().all(|g| g.is_finite()) {
+            return Err(CoreError::InvalidParameter {
+                name: "force_gain",
+                reason: format!("{} N per input unit is too small: a force of 1 N would be an input of {} units", Num(self.force_gain), Num(1.0 / self.force_gain)),
+            });
+        }
+        if !d.gamma_old.iter().chain(d.gamma_new.iter()).all(|g| g.is_finite()) {
+            return Err(CoreError::InvalidParameter { name: "plant", reason: format!("the discretisation at a step of {} s overflows", Num(dt)) });
+        }
+        Ok(d)
     }
 }
 
@@ -146,6 +153,16 @@ impl DelayLine {
     /// longer line behaves like one of `n` (nothing pushed comes out), so the length is capped.
     pub fn new(delay_steps: usize, initial: f64, n: usize) -> Self {
         Self { buf: vec![initial; delay_steps.min(n) + 2], head: 0 }
+    }
+
+    /// [`DelayLine::new`], allocated fallibly: memory that cannot be had is
+    /// [`CoreError::TooLarge`], not an abort.
+    pub fn try_new(delay_steps: usize, initial: f64, n: usize) -> Result<Self> {
+        let mut buf = crate::error::try_zeroed("delay", delay_steps.min(n).saturating_add(2))?;
+        if initial != 0.0 {
+            buf.fill(initial);
+        }
+        Ok(Self { buf, head: 0 })
     }
 
     /// Push `u[k]`, return `(u[k-m-1], u[k-m])`.

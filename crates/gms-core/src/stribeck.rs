@@ -119,6 +119,12 @@ impl StaticFriction {
     /// Same map regularised below `v_linear` (m/s), see [`StaticFriction::v_linear`].
     pub fn with_linear_region(mut self, v_linear: f64) -> Result<Self> {
         self.v_linear = check::non_negative("v_linear", v_linear)?;
+        if v_linear > 0.0 && !self.linear_region_slope().is_finite() {
+            return Err(CoreError::InvalidParameter {
+                name: "v_linear",
+                reason: format!("{} m/s is too small: the slope of the linear region, F(v_linear) / v_linear, overflows", crate::error::Num(v_linear)),
+            });
+        }
         Ok(self)
     }
 

@@ -73,7 +73,11 @@ impl FrictionSpec {
         };
         let v = slice("v", &v)?;
         let out = py.detach(|| map.map.force_many(v)).py()?;
-        run::finite_output(py, "force", &out)?;
+        // A memoryless map has no run to blame: name the velocity that leaves the finite range.
+        if let Some(i) = out.iter().position(|f| !f.is_finite()) {
+            let reason = format!("{} m/s at index {i} gives a non-finite force (beyond the map's finite range)", core::error::Num(v[i]));
+            return Err(core::CoreError::InvalidParameter { name: "v", reason }).py();
+        }
         Ok(out.into_pyarray(py))
     }
 }
