@@ -174,6 +174,7 @@ def simulate_batch(
     native_ctrl = [native_controller(c, f"controllers[{i}]") for i, c in enumerate(controller_list)]
     inputs, record, every = run_inputs(reference, n_runs, options, allow_2d=True)
     n = next(a.shape[1] for a in (inputs["reference"], inputs["feedforward"]) if a is not None)
+    dt = number("dt", dt)
     bar, report = _progress_callback(progress, "batch runs", n_runs, n_runs * n)
     try:
         out = _gmsfric.simulate(axes, native_ctrl, number("dt", dt), inputs, _record_for_core(record, inputs), every, _threads(threads), report)
