@@ -243,6 +243,7 @@ def worker_main() -> None:
     import warnings
 
     resource.setrlimit(resource.RLIMIT_AS, (WORKER_MEMORY, WORKER_MEMORY))
+    resource.setrlimit(resource.RLIMIT_CORE, (0, 0))  # an abort leaves no core file behind
     warnings.simplefilter("ignore")
     import matplotlib
 

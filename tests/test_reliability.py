@@ -246,6 +246,14 @@ def test_times_whose_step_overflows_are_refused():
         (lambda: g.AxisModel(g.Plant(1, 1, 0)).with_parameters({1: 2.0}), r"`values` has a parameter path that is not a string: 1"),
         (lambda: g.AxisModel(g.Plant(1, 1, 0), covariance=g.Covariance(("plant.b",), [[1.0]])).sample(10**18),
          r"`n` must be between 1 and 1000000"),
+        (lambda: g.AxisModel(g.Plant(1, 1, 0), covariance=g.Covariance(("plant.b",), [[1.0]])).sample(2, seed=0.5),
+         r"`seed` must be an integer"),
+        (lambda: g.Plant("1", 1, 0), r"`a` must be a real number, got '1'"),
+        (lambda: g.simulate_closed_loop(g.Plant(1, 1, 0), None, None, None, "1", feedforward=np.ones(3)), r"`dt` must be a real number"),
+        (lambda: batch.simulate_batch(g.Plant(1, 1, 0), None, None, None, "1", feedforward=np.ones(3)), r"`dt` must be a real number"),
+        (lambda: g.model_io.model_to_dict(g.Plant(1, 1, 0), drive=np.array([])), r"`drive` must be one of 'V', 'A'"),
+        (lambda: g.model_io.model_to_dict(g.Plant(1, 1, 0), rotary=np.ones(2)), r"`rotary` must be True or False"),
+        (lambda: g.model_io.model_from_dict(g.model_io.model_to_dict({"p": g.Plant(1, 1, 0)}), part=["p"]), r"`part` must be the name"),
     ],
 )
 def test_bad_arguments_raise_invalid_input_naming_them(call, match):
@@ -263,10 +271,12 @@ def test_model_documents_with_hostile_fields_are_format_errors():
     from gmsfric.model_io import ModelFormatError, model_from_dict, model_to_dict
 
     doc = model_to_dict(presets.paper_plant())
-    for field, value in (("kind", {"value": 1.0}), ("kind", ["plant"]), ("kind", None)):
+    for field, value in (("kind", {"value": 1.0}), ("kind", ["plant"]), ("kind", None), ("kind", np.array([]))):
         with pytest.raises(ModelFormatError, match=r"unknown model kind"):
             model_from_dict({**doc, field: value})
     axis = g.AxisModel(presets.paper_plant(), presets.paper_gms()).model_document()
+    with pytest.raises(ModelFormatError, match=r'"axis" must be "linear" or "rotary", got an array'):
+        model_from_dict({**doc, "axis": np.array(["linear", "rotary"])})
     for field, value in (("options", [1, 2]), ("provenance", "abc")):
         with pytest.raises(ModelFormatError, match=rf'"{field}" must be an object'):
             model_from_dict({**axis, field: value})

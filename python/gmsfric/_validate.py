@@ -62,8 +62,9 @@ def choice(name: str, value: Any, options: Sequence[str]) -> str:
 
 def number(name: str, value: Any) -> float:
     """``value`` as a float (NaN and inf pass: the core names them); anything that is not a real
-    number, or does not fit a double, raises ``InvalidInputError`` naming ``name``."""
-    if isinstance(value, (bool, np.bool_)) or isinstance(value, (complex, np.complexfloating)):
+    number (a bool, a string, even a numeric one), or does not fit a double, raises
+    ``InvalidInputError`` naming ``name``."""
+    if isinstance(value, (bool, np.bool_, str, bytes)) or isinstance(value, (complex, np.complexfloating)):
         raise InvalidInputError(f"`{name}` must be a real number, got {show(value)}")
     try:
         return float(value)

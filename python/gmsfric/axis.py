@@ -373,7 +373,7 @@ class AxisModel(NativeBacked):
         if self.covariance is None:
             raise InvalidInputError("this model has no covariance to sample from")
         n = count("n", n, minimum=1, maximum=MAX_SAMPLES)
-        rng = np.random.default_rng(seed)
+        rng = np.random.default_rng(None if seed is None else count("seed", seed, minimum=0))
         names = self.covariance.names
         base = self.parameters()
         missing = [k for k in names if k not in base]

@@ -132,8 +132,8 @@ class Parameters:
         self.document = doc
         self.kind = str(doc.get("kind"))
         axis = doc.get("axis", "linear")
-        if axis not in ("linear", "rotary"):
-            raise ModelFormatError(f"{source}: \"axis\" must be \"linear\" or \"rotary\", got {axis!r}")
+        if not isinstance(axis, str) or axis not in ("linear", "rotary"):
+            raise ModelFormatError(f"{source}: \"axis\" must be \"linear\" or \"rotary\", got {show(axis)}")
         self.rotary = axis == "rotary"
         params = doc.get("parameters", {})
         if not isinstance(params, Mapping):
@@ -292,6 +292,8 @@ def model_to_dict(
     provenance : dict, optional
         Where the model comes from (input files, columns, units, command).
     """
+    if not isinstance(rotary, (bool, np.bool_)):
+        raise InvalidInputError(f"`rotary` must be True or False, got {show(rotary)}")
     head = {"schema": SCHEMA, "gmsfric_version": _version()}
     if isinstance(model, Mapping):
         if not model:
@@ -350,7 +352,9 @@ def _decode_model(doc: Mapping[str, Any], source: str, part: str | None) -> Any:
     if schema != SCHEMA:
         raise ModelFormatError(f"{source}: unsupported model schema {schema!r}; this gmsfric reads {SCHEMA!r}")
     kind = doc.get("kind")
-    if kind == "bundle":
+    if part is not None and not isinstance(part, str):
+        raise InvalidInputError(f"`part` must be the name of a model of the bundle, got {show(part)}")
+    if isinstance(kind, str) and kind == "bundle":
         models = doc.get("models")
         if not isinstance(models, Mapping) or not models:
             raise ModelFormatError(f"{source}: a bundle needs a non-empty \"models\" object")
@@ -360,7 +364,7 @@ def _decode_model(doc: Mapping[str, Any], source: str, part: str | None) -> Any:
             return _decode_body(models[part], f"{source} [{part}]")
         return {str(k): _decode_body(v, f"{source} [{k}]") for k, v in models.items()}
     if part is not None:
-        raise ModelFormatError(f"{source}: `part` {part!r} given but the document holds one {kind!r} model")
+        raise ModelFormatError(f"{source}: `part` {part!r} given but the document holds one {show(kind)} model")
     return _decode_body(doc, source)
 
 
@@ -465,6 +469,8 @@ def save_model(
 ) -> Path:
     """Write the model document of ``model`` to ``path`` (atomically); returns the path.
     Arguments as :func:`model_to_dict`."""
+    if not isinstance(rotary, (bool, np.bool_)):
+        raise InvalidInputError(f"`rotary` must be True or False, got {show(rotary)}")
     if hasattr(model, "model_document") and covariance is None and provenance is None and not rotary:
         # Models that carry their own covariance, units and provenance (AxisModel) write them.
         doc = model.model_document()

@@ -585,10 +585,11 @@ def simulate_closed_loop(
     """
     axis = axis_of(plant, friction)
     ctrl = native_controller(controller)
+    dt = number("dt", dt)
     if ctrl is not None and reference is None:
         raise InvalidInputError("a closed-loop run needs a `reference` (or pass controller=None for open loop)")
     inputs, record, every = run_inputs(reference, 1, options, allow_2d=False)
-    out = _gmsfric.simulate([axis], [ctrl], number("dt", dt), inputs, _record_for_core(record, inputs), every, 1)
+    out = _gmsfric.simulate([axis], [ctrl], dt, inputs, _record_for_core(record, inputs), every, 1)
     rows = _measured_view({k: v[0] for k, v in out.items()}, record, inputs)
     n = next(iter(out.values())).shape[1] if out else 0
     t = np.arange(0, n * every, every, dtype=np.float64)[:n]

@@ -25,6 +25,7 @@ from typing import Iterable, overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._validate import choice
 from .errors import InvalidInputError
 
 __all__ = [
@@ -393,8 +394,7 @@ def si_unit(quantity: str, rotary: bool = False, *, drive: str = "V") -> str:
     q = _quantity(quantity)
     s = q.si_rotary if rotary else q.si_linear
     if quantity in _DRIVE_SENSITIVE:
-        if drive not in ("V", "A"):
-            raise InvalidInputError(f"`drive` must be 'V' or 'A', got {drive!r}")
+        choice("drive", drive, ("V", "A"))
         s = s.replace("V", drive)
     return s
 
@@ -437,8 +437,7 @@ def display_unit(quantity: str, rotary: bool = False, *, angle: str = "rad") -> 
     """The preferred unit for showing ``quantity`` in reports: mm, mm/s, N, N/um ... on a linear
     axis; rad (or deg with ``angle="deg"``), rad/s, N m ... on a rotary one."""
     _quantity(quantity)
-    if angle not in ("rad", "deg"):
-        raise InvalidInputError(f"`angle` must be 'rad' or 'deg', got {angle!r}")
+    choice("angle", angle, ("rad", "deg"))
     if rotary and angle == "deg" and quantity in _DEGREES:
         return _DEGREES[quantity]
     return (_DISPLAY_ROTARY if rotary else _DISPLAY_LINEAR)[quantity]
