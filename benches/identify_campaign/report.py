@@ -9,6 +9,8 @@ from typing import Any, Iterable
 
 import numpy as np
 
+import sims
+
 PARAMS = {"static": ["fc", "fs", "vs", "sigma", "delta"], "plant": ["a", "b", "c", "delay"], "presliding": ["k", "w"]}
 Z95 = 1.959963984540054
 BLOCK_TOL = 0.03
@@ -16,6 +18,40 @@ BLOCK_TOL = 0.03
 
 def load(path: Path) -> list[dict[str, Any]]:
     return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+
+
+def backfill(recs: list[dict[str, Any]], json_dir: Path) -> list[dict[str, Any]]:
+    """Add the accepted plateaus from the CLI's JSON files to records written without them."""
+    for r in recs:
+        if r.get("family") == "static-raw" and r.get("estimate") and "plateaus" not in r.get("info", {}):
+            p = Path(json_dir) / f"{r['case']}-{r['variant']}-{r['units']}.json"
+            if p.exists():
+                r["info"]["plateaus"] = [[q["velocity"], q["force"]] for q in json.loads(p.read_text()).get("plateaus", [])]
+    return recs
+
+
+def bad_plateaus(rec: dict[str, Any], tol: float = 0.05) -> int:
+    """Accepted plateaus (SI runs) whose mean force is off the true map by more than ``tol``:
+    transients (acceleration ramps, settling) taken for steady motion."""
+    pl = rec.get("info", {}).get("plateaus")
+    if not pl or rec.get("units") != "si":
+        return 0
+    v, F = np.array(pl, dtype=float).T
+    Ft = sims.stribeck_force(v, **rec["truth"])
+    return int(np.sum(np.abs(F - Ft) > tol * np.abs(Ft)))
+
+
+def alias_error(rec: dict[str, Any]) -> float:
+    """Relative difference at 0.9 x the top of the excitation band between the exact sampled
+    plant (what the data obey) and the continuous plant x zero-order hold x delay (the model
+    ``identify plant`` fits): the bias floor of a continuous-model fit."""
+    t, T, f = rec["truth"], 1.0 / rec["meta"]["rate"], 0.9 * rec["meta"]["band_hz"][1]
+    Phi, G0, G1, n = sims.discretize_delayed(t["a"], t["b"], t["c"], t["delay"], T)
+    z = np.exp(2j * np.pi * f * T)
+    Hd = np.linalg.solve(z * np.eye(2) - Phi, G0 + G1 / z)[0] * z ** (-n)
+    s = 2j * np.pi * f
+    Hc = t["a"] / (s * s + t["b"] * s + t["c"]) * np.exp(-s * t["delay"]) * (1 - np.exp(-s * T)) / (s * T)
+    return float(abs(Hd / Hc - 1))
 
 
 def _blocks(params: dict[str, Any], truth: bool) -> list[tuple[float, float, float, float]]:
@@ -149,6 +185,31 @@ def build(recs: list[dict[str, Any]], campaign: dict[str, Any]) -> str:
                          str(warned), f"{np.median(wall):.1f}" if wall else "-"])
     out.append(_table(["family", "run", "runs", "failed", "errors (count x last line)", "degenerate", "kinds", "warned", "median CLI s"], rows))
     out.append("")
+
+    raw = [r for r in main if r["family"] == "static-raw" and r.get("estimate")]
+    if raw:
+        bad = [r for r in raw if bad_plateaus(r) > 0]
+        out += ["## Static map from raw runs: accepted plateaus off the true map", "",
+                f"{len(bad)} of {len(raw)} fits used at least one plateau whose force is more than 5 % off the true map at its "
+                f"velocity (a transient taken for steady motion: ramp of a heavy axis, settling); "
+                f"{sum(bad_plateaus(r) for r in bad)} such plateaus of {sum(len(r['info'].get('plateaus', [])) for r in raw)}. "
+                "Coverage of the fits without / with them:", ""]
+        rows = coverage_rows([r for r in raw if bad_plateaus(r) == 0], "no bad plateau") + coverage_rows(bad, "with bad plateaus")
+        out.append(_table(["subset", "param", "n", "coverage", "median rel err", "p90 rel err", "z scale", "se null"], rows))
+        out.append("")
+
+    pl = [r for r in main if r["identifier"] == "plant" and r.get("estimate")]
+    if pl:
+        out += ["## Plant by sample rate", "",
+                "`alias` = median relative difference, at 0.9 x the top of the excitation band, between the exact sampled "
+                "plant the data obey and the continuous plant x ZOH x delay that is fitted (a bias no stderr covers).", ""]
+        rows = []
+        for rate in sorted({r["meta"]["rate"] for r in pl}):
+            sub = [r for r in pl if r["meta"]["rate"] == rate]
+            cr = {row[1]: row[3] for row in coverage_rows(sub, "")}
+            rows.append([f"{rate:g}", str(len(sub)), _fmt_pct(float(np.median([alias_error(r) for r in sub])))] + [cr.get(k, "-") for k in PARAMS["plant"]])
+        out.append(_table(["rate Hz", "runs", "alias", *(f"coverage {k}" for k in PARAMS["plant"])], rows))
+        out.append("")
 
     ps = [r for r in recs if r["identifier"] == "presliding" and r.get("units") == "si"]
     if ps:

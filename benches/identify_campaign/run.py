@@ -166,6 +166,8 @@ def run_case(case_key: tuple[str, int], seed: int, small: bool, out: Path, exe: 
             rec["unit_notes"] += conv_notes
             rec["diagnostics"] = doc.get("diagnostics", [])
             rec["info"] = {k: v for k, v in doc.items() if k in ("n_blocks", "n_plateaus", "n_rejected", "chi2_dof", "stderr_inflation", "rms_residual", "bic")}
+            if "plateaus" in doc:  # the accepted plateaus, to check them against the true map
+                rec["info"]["plateaus"] = [[p.get("velocity"), p.get("force")] for p in doc["plateaus"]]
         elif rc == 0:
             rec["error"] = "exit 0 but no JSON written"
         rec["table_tail"] = stdout.strip().splitlines()[-12:] if rc == 0 else []
@@ -223,7 +225,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     out = Path(args.out)
     if args.report_only:
-        text = report.build(report.load(out / "results.jsonl"), json.loads((out / "campaign.json").read_text()) if (out / "campaign.json").exists() else {})
+        text = report.build(report.backfill(report.load(out / "results.jsonl"), out / "json"), json.loads((out / "campaign.json").read_text()) if (out / "campaign.json").exists() else {})
         (out / "report.md").write_text(text)
         print(text)
         return 0
