@@ -117,7 +117,7 @@ def degenerate(rec: dict[str, Any]) -> str | None:
 
 
 def _fmt_pct(x: float) -> str:
-    return "-" if not np.isfinite(x) else f"{100 * x:.0f} %" if x >= 0.1 else f"{100 * x:.1f} %" if x >= 0.001 else f"{100 * x:.2g} %"
+    return "-" if not np.isfinite(x) else f"{100 * x:.2g} %" if x >= 10 else f"{100 * x:.0f} %" if x >= 0.1 else f"{100 * x:.1f} %" if x >= 0.001 else f"{100 * x:.2g} %"
 
 
 def _table(header: list[str], rows: Iterable[list[str]]) -> str:
