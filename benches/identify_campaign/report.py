@@ -273,6 +273,22 @@ def build(recs: list[dict[str, Any]], campaign: dict[str, Any]) -> str:
         out.append(_table(["family", "other units", "pairs", "same exit", "same parameter set / block count", "median max rel diff", "worst max rel diff", "notes"], rows))
         out.append("")
 
+    out += ["## Worst cases (largest |z| of an SI run; rerun one with `run.py --case ID --seed SEED`)", ""]
+    rows = []
+    for fam in fams:
+        scored = []
+        for r in main:
+            if r["family"] != fam:
+                continue
+            zs = [(abs((e - t) / s) if np.isfinite(s) and s > 0 else np.inf, n, (e - t) / t) for n, t, e, s in param_samples(r)]
+            if zs:
+                z, n, rel = max(zs, key=lambda q: q[0])
+                scored.append((z, r["case"], r["variant"], n, rel))
+        for z, case, variant, n, rel in sorted(scored, reverse=True)[:3]:
+            rows.append([fam, case, variant, n, f"{z:.3g}", f"{100 * rel:+.3g} %"])
+    out.append(_table(["family", "case", "run", "param", "|z|", "rel err"], rows))
+    out.append("")
+
     out += ["## Wall time of the CLI runs", ""]
     rows = []
     for ident in ("static", "presliding", "plant"):

@@ -214,6 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--only", action="append", choices=list(SPLIT), help="identifier(s) to run (repeatable)")
     p.add_argument("--family", action="append", choices=list(generate.FAMILIES), help="restrict to these families")
+    p.add_argument("--case", action="append", metavar="FAMILY-INDEX", help="run just this case (e.g. presliding-issue-0007), data kept")
     p.add_argument("--subset", choices=["ci"], help="ci: a few fixed short cases per identifier")
     p.add_argument("--jobs", type=int, default=2, help="CLI processes at a time (<= 2 on a shared machine)")
     p.add_argument("--out", default="/tmp/identify_campaign", help="data, JSON and results directory (outside git)")
@@ -237,6 +238,13 @@ def main(argv: list[str] | None = None) -> int:
     keys: list[tuple[str, int]] = []
     small = args.subset == "ci"
     seed = CI_SEED if small else args.seed
+    if args.case:
+        for c in args.case:
+            fam, _, idx = c.rpartition("-")
+            if fam not in generate.FAMILIES or not idx.isdigit():
+                p.error(f"--case {c!r}: expected FAMILY-INDEX with FAMILY one of {', '.join(generate.FAMILIES)}")
+            keys.append((fam, int(idx)))
+        idents, args.keep = [], True
     for ident in idents:
         for fam, share in SPLIT[ident].items():
             if args.family and fam not in args.family:
