@@ -245,7 +245,7 @@ def build(recs: list[dict[str, Any]], campaign: dict[str, Any]) -> str:
 
     pairs = defaultdict(dict)
     for r in recs:
-        if r.get("variant") in ("fit", "bic"):
+        if r.get("variant") in ("fit", "bic", "fixed"):
             pairs[(r["case"], r["variant"])][r["units"]] = r
     rows = []
     for fam in fams:
