@@ -136,7 +136,8 @@ def make_presliding(family: str, index: int, seed: int, small: bool = False) -> 
         a_small = _logu(rng, min(2 * d.min(), a_large / 4), max(2 * d.min(), a_large / 4)) if n > 1 else a_large / 3
         amps = [a_small, a_large]
         cols, m2 = _presliding_record(rng, k, w, lambda t: sims.virgin_sine_position(t, amps, freq, cycles), len(amps) * cycles / freq, rate, None)
-        meta.update(test="virgin", amplitudes=amps, frequency=freq)
+        # first maximum of the large sine: every block saturated forwards (for reference.py)
+        meta.update(test="virgin", amplitudes=amps, frequency=freq, saturated_index=int(np.floor((cycles + 0.25) / freq * rate)), saturated_sign=1.0)
     else:
         n_moves = 10 if small else 18
         swing = np.exp(rng.uniform(np.log(d.min()), np.log(3.5 * d.max()), n_moves))
@@ -147,7 +148,9 @@ def make_presliding(family: str, index: int, seed: int, small: bool = False) -> 
         durations = rng.uniform(2.0, 6.0, n_moves)
         z0 = d * rng.uniform(-1.0, 1.0, n)  # a history before the record: no virgin branch
         cols, m2 = _presliding_record(rng, k, w, lambda t: sims.reversal_position(t, turns, durations), float(durations.sum()) + 0.5, rate, z0)
-        meta.update(test="hysteresis", reversals=n_moves)
+        j = int(np.argmax(swing > 2.05 * d.max()))  # the first move that saturates every block
+        meta.update(test="hysteresis", reversals=n_moves, saturated_index=int(np.floor(durations[: j + 1].sum() * rate)),
+                    saturated_sign=1.0 if j % 2 == 0 else -1.0)
     meta.update(m2)
     return Case(family, index, seed, _block_truth(k, w), cols, {"t": "time", "x": "position", "F": "force"}, meta)
 

@@ -213,10 +213,12 @@ def build(recs: list[dict[str, Any]], campaign: dict[str, Any]) -> str:
 
     ps = [r for r in recs if r["identifier"] == "presliding" and r.get("units") == "si"]
     if ps:
-        out += ["## Pre-sliding: block count (BIC, `--max-blocks 8`) and blocks within 3 %", ""]
+        out += ["## Pre-sliding: block count (BIC, `--max-blocks 8`) and blocks within 3 %", "",
+                "`reference` (where run): the direct force fit of reference.py, told the true block count and where every "
+                "block is saturated: what the data allow, not a candidate identifier.", ""]
         rows = []
         for fam in sorted({r["family"] for r in ps}):
-            for variant in ("bic", "fixed"):
+            for variant in ("bic", "fixed", "reference"):
                 sub = [r for r in ps if r["family"] == fam and r["variant"] == variant]
                 if not sub:
                     continue

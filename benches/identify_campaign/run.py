@@ -30,6 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import generate  # noqa: E402
+import reference  # noqa: E402
 import report  # noqa: E402
 import sims  # noqa: E402
 
@@ -123,12 +124,26 @@ def to_si(doc: dict[str, Any]) -> tuple[dict[str, list[float | None]], list[str]
     return out, notes
 
 
+def reference_record(case: generate.Case) -> dict[str, Any]:
+    """The direct reference fit (reference.py) of a pre-sliding case, as a result record."""
+    t0 = time.perf_counter()
+    est = reference.direct_block_fit(case.columns["x"], case.columns["F"], case.meta["n_blocks"], case.meta["saturated_index"],
+                                     case.meta["saturated_sign"], seed=case.index)
+    return {"case": case.id, "family": case.family, "identifier": case.identifier, "index": case.index, "seed": case.seed,
+            "variant": "reference", "units": "si", "rc": 0, "wall_s": round(time.perf_counter() - t0, 3), "truth": case.truth,
+            "meta": case.meta, "estimate": est, "info": {"n_blocks": case.meta["n_blocks"]}, "command": "reference.direct_block_fit"}
+
+
 def run_case(case_key: tuple[str, int], seed: int, small: bool, out: Path, exe: list[str], opts: dict[str, set[str]], alt: bool,
-             timeout: float, keep: bool, sink) -> None:  # type: ignore[no-untyped-def]
+             timeout: float, keep: bool, sink, with_reference: bool = False, cli: bool = True) -> None:  # type: ignore[no-untyped-def]
     family, index = case_key
     t0 = time.perf_counter()
     case = generate.make_case(family, index, seed, small)
     gen_time = time.perf_counter() - t0
+    if with_reference and case.identifier == "presliding":
+        sink(reference_record(case))
+    if not cli:
+        return
     variants = ["fixed", "bic"] if case.identifier == "presliding" else ["fit"]
     runs = [(v, False) for v in variants]
     if alt:
@@ -223,6 +238,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--gmsfric", default=None, help="the gmsfric command (default: next to this Python)")
     p.add_argument("--keep", action="store_true", help="keep the generated CSV files")
     p.add_argument("--report-only", action="store_true", help="rebuild OUT/report.md from OUT/results.jsonl")
+    p.add_argument("--reference", action="store_true", help="also the direct reference fit of each pre-sliding case (in-process, slow)")
+    p.add_argument("--reference-only", action="store_true", help="only the reference fits, appended to an existing OUT/results.jsonl")
     args = p.parse_args(argv)
     out = Path(args.out)
     if args.report_only:
@@ -251,12 +268,15 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             idx = CI_CASES.get(fam, []) if small else range(max(1, int(round(share * args.n))))
             keys += [(fam, int(i)) for i in idx]
-    if out.exists():
-        for sub in ("json", "data"):
-            shutil.rmtree(out / sub, ignore_errors=True)
-    out.mkdir(parents=True, exist_ok=True)
     results = out / "results.jsonl"
-    results.write_text("")
+    if not args.reference_only:
+        if out.exists():
+            for sub in ("json", "data"):
+                shutil.rmtree(out / sub, ignore_errors=True)
+        out.mkdir(parents=True, exist_ok=True)
+        results.write_text("")
+    elif not results.exists():
+        p.error(f"--reference-only appends to {results}, which does not exist")
     opts = cli_options(exe)
     check = selfcheck()
     print(f"simulators: {check}", file=sys.stderr)
@@ -274,7 +294,7 @@ def main(argv: list[str] | None = None) -> int:
     order = sorted(keys, key=lambda kv: (kv[1], kv[0]))
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         futs = {pool.submit(run_case, key, seed, small, out, exe, opts, key[0] in CI_UNITS if small else (args.units_every > 0 and key[1] % args.units_every == 0),
-                            args.timeout, args.keep, sink): key for key in order}
+                            args.timeout, args.keep, sink, args.reference or args.reference_only, not args.reference_only): key for key in order}
         for fut in as_completed(futs):
             key = futs[fut]
             done[0] += 1
@@ -285,6 +305,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"\r{done[0]}/{total} cases, {time.perf_counter() - t0:.0f} s", end="", file=sys.stderr, flush=True)
     wall = time.perf_counter() - t0
     print(file=sys.stderr)
+    if args.reference_only:
+        text = report.build(report.backfill(report.load(results), out / "json"), json.loads((out / "campaign.json").read_text()) if (out / "campaign.json").exists() else {})
+        (out / "report.md").write_text(text)
+        print(f"reference fits appended in {wall:.0f} s", file=sys.stderr)
+        return 0
     campaign = {"seed": seed, "n": args.n, "subset": args.subset, "jobs": args.jobs, "wall_s": round(wall, 1), "cases": total,
                 "command": " ".join(sys.argv), "cli": exe, "cli_options": {k: sorted(v) for k, v in opts.items()}, "selfcheck": check}
     (out / "campaign.json").write_text(json.dumps(campaign, indent=2) + "\n")

@@ -33,7 +33,7 @@ except ImportError:  # pragma: no cover
 
 # --------------------------------------------------------------------------- pre-sliding
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # nogil: reference fits run in two threads
 def _blocks_loop(x: NDArray[np.float64], k: NDArray[np.float64], d: NDArray[np.float64], z0: NDArray[np.float64]) -> NDArray[np.float64]:
     n, nb = x.size, k.size
     z = z0.copy()
