@@ -32,18 +32,21 @@ def direct_block_fit(x: np.ndarray, F: np.ndarray, n_blocks: int, start: int, si
     rng = np.random.default_rng(seed)
     w0 = np.full(n, 0.5 * float(np.ptp(Fs)) / n)
     starts = [np.geomspace(d_lo * 10, d_hi / 1.5, n)] + [np.sort(np.exp(rng.uniform(np.log(d_lo), np.log(d_hi), n))) for _ in range(n_starts - 1)]
+    # bounds keep exp() finite: break forces up to 10x the force span, displacements within the motion
+    f_hi = 10.0 * float(np.ptp(Fs))
+    lo = np.concatenate([np.full(n, np.log(f_hi * 1e-8)), np.full(n, np.log(d_lo / 10))])
+    hi = np.concatenate([np.full(n, np.log(f_hi)), np.full(n, np.log(d_hi * 10))])
     best = None
     for d0 in starts:
-        sol = least_squares(resid, np.concatenate([np.log(w0), np.log(d0)]), method="trf", x_scale=1.0, diff_step=1e-4, max_nfev=400)
-        if best is None or sol.cost < best.cost:
+        q0 = np.clip(np.concatenate([np.log(w0), np.log(d0)]), lo + 1e-9, hi - 1e-9)
+        sol = least_squares(resid, q0, bounds=(lo, hi), method="trf", x_scale=1.0, diff_step=1e-4, max_nfev=400)
+        if np.isfinite(sol.cost) and (best is None or sol.cost < best.cost):
             best = sol
     assert best is not None
     q, J, r = best.x, best.jac, best.fun
     dof = max(r.size - 2 * n, 1)
-    try:
-        cov = np.linalg.pinv(J.T @ J) * float(r @ r) / dof
-    except np.linalg.LinAlgError:  # pragma: no cover
-        cov = np.full((2 * n, 2 * n), np.inf)
+    JtJ = J.T @ J
+    cov = np.linalg.pinv(JtJ) * float(r @ r) / dof if np.all(np.isfinite(JtJ)) else np.full((2 * n, 2 * n), np.inf)
     w, d = np.exp(q[:n]), np.exp(q[n:])
     k = w / d
     var_lw, var_ld = np.diag(cov)[:n], np.diag(cov)[n:]
