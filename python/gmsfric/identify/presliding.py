@@ -364,19 +364,21 @@ class _LinearBlocks:
         return coef[:nb], float(coef[nb]) if self.offset else 0.0, r
 
 
-def _admissible(k: NDArray[np.float64], d: NDArray[np.float64], lo: float, hi: float, resolution: float) -> tuple[bool, str]:
+def _admissible(k: NDArray[np.float64], d: NDArray[np.float64], lo: float, hi: float, resolution: float, beyond: bool = False) -> tuple[bool, str]:
     """A block set the data can determine: every stiffness positive, knots apart by at least
     ``MIN_KNOT_RATIO`` and a few resolutions, every knot inside ``(lo, hi)`` (a block that never
-    breaks within the data, or breaks below the resolution, has no identifiable break force)."""
+    breaks within the data, or breaks below the resolution, has no identifiable break force).
+    ``beyond``: the last knot may sit at ``hi`` (the virgin curve ends before it, the force record
+    does not)."""
     order = np.argsort(d)
     k, d = k[order], d[order]
     if np.any(k <= 1e-9 * max(float(k.max()), 1e-300)):
         return False, "a block with zero stiffness"
     if d.size > 1 and np.any((d[1:] / d[:-1] < MIN_KNOT_RATIO) | (np.diff(d) < 2 * resolution)):
         return False, "two blocks with the same break displacement"
-    if d[0] <= lo * 1.001:
-        return False, "a block breaking below the position resolution"
-    if d[-1] >= hi * 0.999:
+    if d[0] <= max(lo * 1.001, 2.0 * resolution):
+        return False, "a block breaking within two position resolutions"
+    if d[-1] >= hi * 0.999 and not beyond:
         return False, "a block that does not break within the measured range"
     w = k * d
     if np.any(w < 1e-4 * w.sum()):
@@ -413,7 +415,8 @@ def _virgin_problem(vc: VirginCurve, n_fine: int = 400) -> tuple[NDArray[np.floa
     return ub, gb, np.sqrt(sw[ok]), lo, hi
 
 
-def _vp_fit_virgin(u: NDArray[np.float64], lin: _LinearBlocks, d0: NDArray[np.float64], lo: float, hi: float, resolution: float) -> BlockFit:
+def _vp_fit_virgin(u: NDArray[np.float64], lin: _LinearBlocks, d0: NDArray[np.float64], lo: float, hi: float, resolution: float,
+                   beyond: bool = False) -> BlockFit:
     """One variable-projection fit of the virgin curve from knots ``d0``."""
     nb = d0.size
     cache: dict[bytes, Any] = {}
@@ -446,8 +449,10 @@ def _vp_fit_virgin(u: NDArray[np.float64], lin: _LinearBlocks, d0: NDArray[np.fl
     d = np.exp(sol.x)
     k, off, r, _ = evaluate(sol.x)
     order = np.argsort(d)
-    ok, why = _admissible(k, d, lo, hi, resolution)
-    return BlockFit(k[order], d[order], float(r @ r), ok, why, off)
+    ok, why = _admissible(k, d, lo, hi, resolution, beyond)
+    fit = BlockFit(k[order], d[order], float(r @ r), ok, why, off)
+    fit.extra["beyond"] = bool(d.max() >= hi * 0.999)
+    return fit
 
 
 def _virgin_starts(vc: VirginCurve, nb: int, lo: float, hi: float, previous: BlockFit | None, rng: np.random.Generator) -> list[NDArray[np.float64]]:
@@ -466,9 +471,12 @@ def _virgin_starts(vc: VirginCurve, nb: int, lo: float, hi: float, previous: Blo
     return starts
 
 
-def _fit_virgin(vc: VirginCurve, n_blocks: int, previous: BlockFit | None = None, *, n_polish: int = 4, seed: int = 0) -> list[BlockFit]:
+def _fit_virgin(vc: VirginCurve, n_blocks: int, previous: BlockFit | None = None, *, hi_force: float = 0.0, n_polish: int = 4,
+                seed: int = 0) -> list[BlockFit]:
     """Fits of ``n_blocks`` blocks to the virgin points from several starts, best first (the
-    admissible ones before the others)."""
+    admissible ones before the others).  ``hi_force``: the largest break displacement the force
+    record can show (its largest half-swing); beyond the virgin curve's end, the last block may
+    break there."""
     u, g, weight, lo, hi = _virgin_problem(vc)
     lin = _LinearBlocks(g, weight, offset=False)
     rng = np.random.default_rng(seed + 7919 * n_blocks)
@@ -480,7 +488,8 @@ def _fit_virgin(vc: VirginCurve, n_blocks: int, previous: BlockFit | None = None
         _, _, r = lin.solve(A)
         scored.append((float(r @ r), d0))
     scored.sort(key=lambda s: s[0])
-    fits = [_vp_fit_virgin(u, lin, d0, lo, hi, vc.resolution) for _, d0 in scored[:n_polish]]
+    beyond = hi_force > 1.05 * hi
+    fits = [_vp_fit_virgin(u, lin, d0, lo, hi, vc.resolution, beyond) for _, d0 in scored[:n_polish]]
     up, gp, wp, _, _ = _virgin_points(vc)
     for f in fits:
         r = (virgin_model(up, f.k, f.d) - gp) * wp
@@ -500,12 +509,38 @@ def _bic(fit: BlockFit, n: int, n_eff: float) -> float:
     return n_eff * np.log(max(rss, 1e-300) / n) + 2 * fit.k.size * np.log(n_eff)
 
 
-def _choose_block_count(fits: dict[int, BlockFit], n: int, n_eff: float) -> tuple[int, dict[int, float]]:
-    bic = {nb: _bic(f, n, n_eff) for nb, f in fits.items()}
-    admissible = [nb for nb, f in fits.items() if f.admissible]
+def _virgin_covariance(vc: VirginCurve, fit: BlockFit) -> tuple[NDArray[np.float64], float, float]:
+    """Covariance of ``(log k, log d)`` of a virgin-curve fit from the points' Jacobian, times the
+    residual's autocorrelation time; returns it, that time and chi2/dof."""
+    u, g, weight, _, _ = _virgin_points(vc)
+    A = np.minimum(u[:, None], fit.d[None, :])
+    sgn = (u[:, None] > fit.d[None, :]).astype(float)
+    r = (A @ fit.k - g) * weight
+    J = np.column_stack([A * fit.k[None, :], sgn * (fit.k * fit.d)[None, :]]) * weight[:, None]
+    order = np.argsort(vc.sample[vc.u > 0], kind="stable")
+    inflation = autocorrelation_inflation(r[order])
+    return covariance_from_jacobian(J, r) * inflation, inflation, float(r @ r) / max(r.size - J.shape[1], 1)
+
+
+def _significant(vc: VirginCurve, fit: BlockFit, z_min: float = 2.0) -> bool:
+    """Every block's stiffness and break force at least ``z_min`` standard errors from zero."""
+    cov, _, _ = _virgin_covariance(vc, fit)
+    nb = fit.k.size
+    var_lk = np.diag(cov)[:nb]
+    var_lw = var_lk + np.diag(cov)[nb:] + 2 * np.diag(cov[:nb, nb:])
+    se = np.sqrt(np.clip(np.concatenate((var_lk, var_lw)), 0, np.inf))
+    return bool(np.all(np.isfinite(se)) and np.all(se <= 1.0 / z_min))
+
+
+def _rank_block_counts(best: dict[int, BlockFit], vc: VirginCurve, n: int, n_eff: float) -> tuple[list[int], dict[int, float]]:
+    """Candidate counts, best BIC first among the admissible fits whose blocks are all
+    significant (then the admissible others)."""
+    bic = {nb: _bic(f, n, n_eff) for nb, f in best.items()}
+    admissible = [nb for nb, f in best.items() if f.admissible]
     if not admissible:
         raise IdentificationError("no admissible block set: every fit has a zero, merged or out-of-range block (more reversals or larger amplitudes?)")
-    return min(admissible, key=lambda nb: bic[nb]), bic
+    sig = {nb: _significant(vc, best[nb]) for nb in admissible}
+    return sorted(admissible, key=lambda nb: (not sig[nb], bic[nb])), bic
 
 
 # ----------------------------------------------------------------------------- 6. hysteresis fit
@@ -528,6 +563,12 @@ def _saturation_sign(z: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[
     return np.where(last >= 0, sign, 0.0)
 
 
+def _largest_half_swing(x: NDArray[np.float64], turns: list[int]) -> float:
+    """Half the largest monotone move: a block breaks in the record only below it."""
+    idx = [0] + list(turns) + [x.size - 1]
+    return 0.5 * float(np.max(np.abs(np.diff(x[idx]))))
+
+
 def _known_state_start(x: NDArray[np.float64], turns: list[int], d_max: float) -> int:
     """First sample after which every block's state is known whatever it was at the start: the
     end of the first monotone move longer than twice the largest break displacement."""
@@ -546,19 +587,33 @@ class _HysteresisData:
     t: NDArray[np.float64]
     x: NDArray[np.float64]          # smoothed position, the model's input
     F: NDArray[np.float64]
-    sigma_x: float                  # position error of the model input
+    sigma_x: NDArray[np.float64]    # position error of the model input, per sample
     sigma_f: float                  # force noise
 
 
-def _smoothed_position(x: NDArray[np.float64], turns: NDArray[np.int64], resolution: float) -> tuple[NDArray[np.float64], float]:
+def _smoothed_position(x: NDArray[np.float64], turns: NDArray[np.int64], resolution: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The position lightly smoothed (cubic Savitzky-Golay over 1/100 of a half-cycle keeps the
-    reversals and removes most of the quantisation staircase) and its remaining error."""
+    reversals and removes most of the quantisation staircase) and the error left at each sample:
+    averaging helps only as far as the window spans several encoder counts (a slow staircase
+    keeps its full quantisation error)."""
     win = int(np.median(np.diff(turns)) / 100) | 1 if len(turns) > 1 else 1
     sigma_q = resolution / np.sqrt(12.0)
     if win < 5:
-        return x, sigma_q
+        return x, np.full(x.size, sigma_q)
     gain = float(np.sqrt(np.sum(savgol_coeffs(win, 3) ** 2)))
-    return savgol_filter(x, win, 3), sigma_q * max(gain, 0.5)
+    xs = savgol_filter(x, win, 3)
+    h = win // 2
+    travel = np.abs(np.concatenate((xs[2 * h:] - xs[:-2 * h], np.zeros(2 * h))))
+    travel = np.roll(travel, h)
+    counts = np.maximum(travel / resolution, 1.0)
+    return xs, sigma_q * np.maximum(gain, 1.0 / np.sqrt(counts))
+
+
+def _reversal_error(x: NDArray[np.float64], resolution: float) -> float:
+    """Position error at a reversal: the quantisation error (smoothing does not reduce it on a
+    flat top, where every sample has the same count) or the white noise, whichever dominates."""
+    noise = 1.4826 * float(np.median(np.abs(np.diff(x, 2)))) / np.sqrt(6.0)
+    return max(resolution / np.sqrt(12.0), noise / 3.0)
 
 
 def _hysteresis_weight(z: NDArray[np.float64], k: NDArray[np.float64], d: NDArray[np.float64], data: _HysteresisData) -> NDArray[np.float64]:
@@ -624,11 +679,24 @@ def _fit_hysteresis(data: _HysteresisData, start: BlockFit, others: list[BlockFi
         mask = np.zeros(n, dtype=bool)
         mask[max(s0, 0):] = True
         best = None
-        for cand in [start] + others:
+        cands = [start] + others
+        if start.extra.get("beyond"):
+            # the last block breaks beyond the virgin curve: start it at a few places up to the
+            # largest half-swing of the record
+            for dn in np.geomspace(start.d[-1], 0.9 * hi, 4)[1:]:
+                cands.append(BlockFit(start.k, np.concatenate((start.d[:-1], [dn])), start.rss, True))
+        for cand in cands:
             fit = _vp_fit_hysteresis(data, cand.d, cand.k, mask, lo, hi, resolution, prog)
             if best is None or (fit.admissible, -fit.rss) > (best.admissible, -best.rss):
                 best = fit
         assert best is not None
+        s1 = min(_known_state_start(data.x, turns, float(best.d.max())), n - 10 * (2 * start.k.size + 1))
+        if s1 > s0:
+            # the fitted largest block breaks later than the start's: its state is known later
+            s0 = s1
+            mask[:] = False
+            mask[s0:] = True
+            best = _vp_fit_hysteresis(data, best.d, best.k, mask, lo, hi, resolution, prog)
         virgin = False
         if s0 > 0:
             # does the record start virgin?  The blocks simulated from zero must explain the early
@@ -647,19 +715,57 @@ def _fit_hysteresis(data: _HysteresisData, start: BlockFit, others: list[BlockFi
     return best, mask, virgin
 
 
-def _hysteresis_covariance(fit: BlockFit, mask: NDArray[np.bool_]) -> tuple[NDArray[np.float64], float, float]:
-    """Covariance of ``(log k, log d, offset)`` from the full Jacobian of the force fit, times the
-    residual's integrated autocorrelation time (quantisation makes the residual correlated);
-    returns it, the inflation and chi2/dof."""
-    z = fit.extra["z"][mask]
+def _reversal_groups(x: NDArray[np.float64], samples: NDArray[np.int64], resolution: float) -> NDArray[np.int64]:
+    """Group id of each sample by its measured position: reversals at the same encoder count
+    share one quantisation error (a repeated sinusoid reverses at the same counts every cycle)."""
+    vals = x[samples]
+    order = np.argsort(vals)
+    ids = np.zeros(vals.size, dtype=np.int64)
+    if vals.size:
+        ids[order] = np.cumsum(np.concatenate(([0], np.diff(vals[order]) > 0.5 * resolution)))
+    return ids
+
+
+def _hysteresis_covariance(fit: BlockFit, mask: NDArray[np.bool_], x: NDArray[np.float64], resolution: float,
+                           sigma_reversal: float) -> tuple[NDArray[np.float64], float, float]:
+    """Covariance of ``(log k, log d, offset)`` of the force fit; returns it, the residual's
+    integrated autocorrelation time and chi2/dof.
+
+    Two parts: the Jacobian covariance times the autocorrelation time (force noise and the
+    position error of each sample, which the weights carry), and the effect of the position error
+    at the reversals.  A sticking block's spring is the travel since it last slipped, so the
+    error of that one sample (the reversal) moves the model force over the whole stick phase; the
+    fit does not average it out like white noise (sandwich term, reversals at the same count
+    sharing one error)."""
+    z_all = fit.extra["z"]
+    z = z_all[mask]
     wgt, r = fit.extra["weight"], fit.extra["residual"]
     k, d = fit.k, fit.d
-    sgn = _saturation_sign(fit.extra["z"], d)[mask]
+    sgn = _saturation_sign(z_all, d)[mask]
     J = np.column_stack([z * k[None, :], sgn * (k * d)[None, :], np.ones(z.shape[0])]) * wgt[:, None]
     inflation = autocorrelation_inflation(r)
     dof = max(r.size - J.shape[1], 1)
     chi2_dof = float(r @ r) / dof
-    return covariance_from_jacobian(J, r) * inflation, inflation, chi2_dof
+    cov = covariance_from_jacobian(J, r) * inflation
+    if sigma_reversal <= 0 or not np.all(np.isfinite(np.diag(cov))):
+        return cov, inflation, chi2_dof
+    # the sample where each block last left saturation, for every sticking sample
+    sat = np.abs(z_all) >= d[None, :] * (1 - 1e-9)
+    last = np.maximum.accumulate(np.where(sat, np.arange(z_all.shape[0])[:, None], -1), axis=0)[mask]
+    sticking = (~sat[mask]) & (last >= 0)
+    rows, blocks = np.nonzero(sticking)
+    exits = last[rows, blocks]
+    uniq, inverse = np.unique(exits, return_inverse=True)
+    group = _reversal_groups(x, uniq, resolution)[inverse]
+    # d(weighted residual)/d(error at the reversal) = -k_i w_t for each sticking sample
+    contrib = (J[rows] * (wgt[rows] * k[blocks])[:, None])
+    B = np.zeros((J.shape[1], int(group.max()) + 1 if group.size else 0))
+    for j in range(J.shape[1]):
+        B[j] = np.bincount(group, contrib[:, j], B.shape[1])
+    A = covariance_from_jacobian(J, np.ones(J.shape[0]) * np.sqrt(max(J.shape[0] - J.shape[1], 1) / J.shape[0]))
+    # covariance_from_jacobian(J, r) = s^2 (J^T J)^-1; with |r|^2 = dof it is (J^T J)^-1
+    cov_rev = A @ B @ B.T @ A * sigma_reversal**2
+    return cov + cov_rev, inflation, chi2_dof
 
 
 # ----------------------------------------------------------------------------- 7. GMS polish
@@ -735,7 +841,7 @@ def _polish_gms(data: _HysteresisData, fit: BlockFit, mask: NDArray[np.bool_], *
 
 
 def _diagnose(findings: Findings, fit: BlockFit, vc: VirginCurve, params_si: Mapping[str, tuple[float, float]], chi2_dof: float, dof: int,
-              hi: float, virgin_start: bool, chosen_by_bic: bool) -> None:
+              hi: float) -> None:
     nb = fit.k.size
     if not fit.admissible:
         findings.add("degenerate", f"{nb} blocks: {fit.reason}; fewer blocks describe these data", None)
@@ -747,15 +853,9 @@ def _diagnose(findings: Findings, fit: BlockFit, vc: VirginCurve, params_si: Map
                                  "its stiffness is poorly determined", "k1")
     check_stderr(findings, params_si)
     check_chi2(findings, chi2_dof * dof, dof, what=" of the force fit")
-    if not virgin_start and chosen_by_bic is not None:
-        pass
 
 
 # ----------------------------------------------------------------------------- the identifier
-
-
-def _gms_si(k: NDArray[np.float64], w: NDArray[np.float64], c: float, stribeck: Stribeck | None, sigma: float, slip_law: str) -> GMS:
-    return _make_gms(k, w, c, stribeck, sigma, slip_law)
 
 
 def fit_presliding(
@@ -845,137 +945,129 @@ def fit_presliding(
     kx, kf, kt = to_si["position"], to_si["force"], to_si["time"]
     t_si, x_si, F_si = _record_si(t, position, force, to_si)
     st_si = None if stribeck is None else Stribeck(stribeck.fc * kf, stribeck.fs * kf, stribeck.vs * kx / kt, stribeck.delta)
+    st_se_si = None if stribeck_stderr is None else {
+        n: float(v) * {"fc": kf, "fs": kf, "vs": kx / kt, "delta": 1.0}[n] for n, v in stribeck_stderr.items() if n in ("fc", "fs", "vs", "delta") and v is not None}
     sigma_si = float(sigma) * kf * kt / kx
     res_si = None if resolution is None else positive("resolution", resolution) * kx
+    c_si = None if c is None else positive("c", c) * (kf / kt if slip_law == "time" else 1.0 / kx)
 
     # 2-3. reversals and the virgin curve
     vc = build_virgin_curve(t_si, x_si, F_si, n_bins=n_bins, resolution=res_si)
-    u_used, _, _, lo, hi = _virgin_points(vc)
+    _, _, _, lo, hi = _virgin_points(vc)
+    hi_force = max(_largest_half_swing(x_si, list(vc.turning_points)), hi)
 
-    # 4-5. virgin fits for each candidate count, the count by BIC
-    candidates = [int(n_blocks)] if n_blocks is not None else list(range(1, int(max_blocks) + 1))
-    fits: dict[int, list[BlockFit]] = {}
-    previous = None
-    for nb in range(1, max(candidates) + 1):
-        if n_blocks is not None and nb < int(n_blocks) - 1:
-            continue  # a fixed count needs only its neighbour below (for the added-knot start)
-        fits[nb] = _fit_virgin(vc, nb, previous)
-        previous = fits[nb][0]
-    best_virgin = {nb: fits[nb][0] for nb in candidates}
-    n_pts = u_used.size
-    first = {nb: f[0] for nb, f in fits.items()}
-    resid_max = _virgin_residual(vc, first[max(first)])
-    n_eff = n_pts / autocorrelation_inflation(resid_max)
-    if n_blocks is None:
-        nb, bic = _choose_block_count(best_virgin, n_pts, n_eff)
-    else:
-        nb = int(n_blocks)
-        bic = {nb: _bic(best_virgin[nb], n_pts, n_eff)}
-        if not best_virgin[nb].admissible and not any(f.admissible for f in fits[nb]):
-            if not refine:
-                raise IdentificationError(f"the virgin curve does not support {nb} blocks: every fit has {best_virgin[nb].reason}")
-    vfit = next((f for f in fits[nb] if f.admissible), fits[nb][0])
-    others = [f for f in fits[nb] if f is not vfit and f.admissible][:1]
-    info: dict[str, Any] = {"n_blocks": nb, "bic": {str(k): float(v) for k, v in bic.items()}, "virgin_bins": int(vc.u_bin.size),
-                            "turning_points": int(vc.turning_points.size), "virgin_fit": {"k": vfit.k.tolist(), "w": vfit.w.tolist(), "knots": vfit.d.tolist()}}
-    if c is None:
-        c_si = 1.0 / st_si.vs if st_si is not None else float(vfit.w.sum()) / float(np.median(np.diff(t_si)))
-    else:
-        c_si = positive("c", c) * (kf / kt if slip_law == "time" else 1.0 / kx)
-    findings = Findings()
-
+    # 4-5. virgin fits of each candidate count; the counts ranked by BIC
+    fits, order, bic = _virgin_stage(vc, n_blocks, int(max_blocks), hi_force)
+    data = None
     if refine:
         xs, sigma_x = _smoothed_position(x_si, vc.turning_points, vc.resolution)
         data = _HysteresisData(t_si, xs, F_si, sigma_x, max(vc.force_noise, 1e-9 * float(np.ptp(F_si))))
-        fit, mask, virgin = _fit_hysteresis(data, vfit, others, list(vc.turning_points), lo, hi, vc.resolution, progress)
-        if not fit.admissible and n_blocks is not None:
-            # the force fit merged or lost a block: the virgin fit's admissible set stands if there is one
+
+    # 6. the force fit of the best count whose blocks the whole record supports
+    for nb in order:
+        vfit = next((f for f in fits[nb] if f.admissible), fits[nb][0])
+        if data is None:
             if vfit.admissible:
-                fit = _vp_fit_hysteresis(data, vfit.d, vfit.k, mask, lo, hi, vc.resolution, None, max_nfev=1)
-        if not fit.admissible:
-            raise IdentificationError(f"the data do not support {nb} blocks: {fit.reason}" + (" (try fewer blocks)" if n_blocks is not None else ""))
-        # errors in variables: the force noise re-estimated from the residual where the force
-        # does not depend on the position (sliding blocks only)
-        cov_q, inflation, chi2_dof = _hysteresis_covariance(fit, mask)
-        k_si, w_si = fit.k, fit.w
-        # covariance of (k, w) from that of (log k, log d): w = k d
-        J = np.zeros((2 * nb, 2 * nb + 1))
-        J[:nb, :nb] = np.diag(k_si)
-        J[nb:, :nb] = np.diag(w_si)
-        J[nb:, nb:2 * nb] = np.diag(w_si)
-        cov_kw = transform_covariance(cov_q, J)
+                break
+            continue
+        others = [f for f in fits[nb] if f is not vfit and f.admissible][:1]
+        fit, mask, virgin = _fit_hysteresis(data, vfit, others, list(vc.turning_points), lo, hi_force, vc.resolution, progress)
+        if fit.admissible:
+            break
+    else:
+        reason = fit.reason if data is not None else vfit.reason
+        hint = " (try fewer blocks)" if n_blocks is not None else ""
+        raise IdentificationError(f"the data do not support {order[-1] if n_blocks is None else n_blocks} blocks: {reason}{hint}")
+    info: dict[str, Any] = {"n_blocks": nb, "bic": {str(k): float(v) for k, v in bic.items()}, "virgin_bins": int(vc.u_bin.size),
+                            "turning_points": int(vc.turning_points.size), "virgin_fit": {"k": vfit.k.tolist(), "w": vfit.w.tolist(), "knots": vfit.d.tolist()}}
+    if c_si is None:
+        c_si = 1.0 / st_si.vs if st_si is not None else float(vfit.w.sum()) / float(np.median(np.diff(t_si)))
+
+    if data is not None:
+        cov_q, inflation, chi2_dof = _hysteresis_covariance(fit, mask, data.x, vc.resolution, _reversal_error(x_si, vc.resolution))
+        k_si, w_si, cov_kw = fit.k, fit.w, _kw_covariance(cov_q, fit.k, fit.w, log_w=False)
         offset = fit.offset
         if st_si is not None:
+            # 7. the GMS level follows the Stribeck curve: refit with it
             k_si, w_si, cov_p, pinfo = _polish_gms(data, fit, mask, c=c_si, stribeck=st_si, sigma=sigma_si, slip_law=slip_law,
-                                                   stribeck_stderr=None if stribeck_stderr is None else
-                                                   {n: float(v) * {"fc": kf, "fs": kf, "vs": kx / kt, "delta": 1.0}[n] for n, v in stribeck_stderr.items()
-                                                    if n in ("fc", "fs", "vs", "delta") and v is not None},
-                                                   progress=progress)
+                                                   stribeck_stderr=st_se_si, progress=progress)
             inflation, chi2_dof, offset = pinfo["stderr_inflation"], pinfo["chi2_dof"], pinfo["offset"]
             if pinfo.get("stribeck_propagated"):
                 info["stribeck_propagated"] = True
-            Jp = np.zeros((2 * nb, 2 * nb + 1))
-            Jp[:nb, :nb] = np.diag(k_si)
-            Jp[nb:, nb:2 * nb] = np.diag(w_si)
-            cov_kw = transform_covariance(cov_p, Jp)
-            order = np.argsort(w_si / k_si)
-            perm = np.concatenate((order, nb + order))
-            k_si, w_si, cov_kw = k_si[order], w_si[order], cov_kw[np.ix_(perm, perm)]
+            cov_kw = _kw_covariance(cov_p, k_si, w_si, log_w=True)
+            o = np.argsort(w_si / k_si)
+            perm = np.concatenate((o, nb + o))
+            k_si, w_si, cov_kw = k_si[o], w_si[o], cov_kw[np.ix_(perm, perm)]
         dof = max(int(mask.sum()) - (2 * nb + 1), 1)
         info.update(stderr_inflation=inflation, chi2_dof=chi2_dof, force_offset=offset / kf, samples_fitted=int(mask.sum()), virgin_start=virgin,
                     force_noise=data.sigma_f / kf, rms_residual=float(np.sqrt(np.mean((fit.extra["residual"] / fit.extra["weight"]) ** 2))) / kf,
                     refined=True)
         final = BlockFit(k_si, w_si / k_si, fit.rss, fit.admissible, fit.reason, offset)
     else:
-        if not vfit.admissible:
-            raise IdentificationError(f"the virgin curve does not support {nb} blocks: {vfit.reason}")
-        u, g, weight, _, _ = _virgin_points(vc)
-        A = np.minimum(u[:, None], vfit.d[None, :])
-        sgn = (u[:, None] > vfit.d[None, :]).astype(float)
-        r = (A @ vfit.k - g) * weight
-        J = np.column_stack([A * vfit.k[None, :], sgn * (vfit.k * vfit.d)[None, :]]) * weight[:, None]
-        inflation = autocorrelation_inflation(r)
-        cov_q = covariance_from_jacobian(J, r) * inflation
-        Jt = np.zeros((2 * nb, 2 * nb))
-        Jt[:nb, :nb] = np.diag(vfit.k)
-        Jt[nb:, :nb] = np.diag(vfit.w)
-        Jt[nb:, nb:] = np.diag(vfit.w)
-        cov_kw = transform_covariance(cov_q, Jt)
-        k_si, w_si = vfit.k, vfit.w
-        dof = max(r.size - 2 * nb, 1)
-        chi2_dof = float(r @ r) / dof
+        cov_q, inflation, chi2_dof = _virgin_covariance(vc, vfit)
+        k_si, w_si, cov_kw = vfit.k, vfit.w, _kw_covariance(cov_q, vfit.k, vfit.w, log_w=False)
+        dof = max(int((vc.u > 0).sum()) - 2 * nb, 1)
         info.update(stderr_inflation=inflation, chi2_dof=chi2_dof, refined=False)
         final = vfit
 
+    # 8. findings, and the report in the data's units (the edge); the model object stays in SI
+    model = _make_gms(k_si, w_si, c_si, st_si, sigma_si, slip_law)
     se_si = np.sqrt(np.clip(np.diag(cov_kw), 0, np.inf))
-    # report in the data's units (the edge); the model object stays in SI
-    sk, sw = kx / kf, 1.0 / kf
-    params: dict[str, tuple[float, float]] = {}
-    for i in range(nb):
-        params[f"k{i + 1}"] = (float(k_si[i] * sk), float(se_si[i] * sk))
-    for i in range(nb):
-        params[f"w{i + 1}"] = (float(w_si[i] * sw), float(se_si[nb + i] * sw))
-    scale = np.concatenate((np.full(nb, sk), np.full(nb, sw)))
-    cov_user = cov_kw * np.outer(scale, scale)
+    params_si = {f"k{i + 1}": (float(k_si[i]), float(se_si[i])) for i in range(nb)}
+    params_si.update({f"w{i + 1}": (float(w_si[i]), float(se_si[nb + i])) for i in range(nb)})
+    findings = Findings()
+    _diagnose(findings, final, vc, params_si, chi2_dof, dof, hi_force)
+    scale = np.concatenate((np.full(nb, kx / kf), np.full(nb, 1.0 / kf)))
+    params = {name: (v * f, e * f) for (name, (v, e)), f in zip(params_si.items(), scale)}
     units = {**{f"k{i + 1}": _units.ratio(force_unit, position_unit) for i in range(nb)}, **{f"w{i + 1}": force_unit for i in range(nb)}}
     info["knots"] = (w_si / k_si / kx).tolist()
     info["break_force"] = float(w_si.sum() / kf)
     info["c"] = c_si / (kf / kt if slip_law == "time" else 1.0 / kx)
-    model = _gms_si(k_si, w_si, c_si, st_si, sigma_si, slip_law)
-    params_si = {f"k{i + 1}": (float(k_si[i]), float(se_si[i])) for i in range(nb)}
-    params_si.update({f"w{i + 1}": (float(w_si[i]), float(se_si[nb + i])) for i in range(nb)})
-    _diagnose(findings, final, vc, params_si, chi2_dof, dof, hi, bool(info.get("virgin_start", True)), n_blocks is None)
     data_out = {"t": t_si, "x": x_si, "F": F_si, "virgin": vc, "stribeck": st_si, "sigma": sigma_si, "slip_law": slip_law, "model": model,
                 "position_unit": position_unit, "force_unit": force_unit, "time_unit": time_unit, "to_si": dict(to_si),
                 "force_offset": float(info.get("force_offset", 0.0)) * kf}
-    res = IdentificationResult("presliding", params, units, info, data=data_out, model_object=model, covariance=(list(params), cov_user))
+    res = IdentificationResult("presliding", params, units, info, data=data_out, model_object=model,
+                               covariance=(list(params), cov_kw * np.outer(scale, scale)))
     emit(res, findings)
     return res
 
 
+def _virgin_stage(vc: VirginCurve, n_blocks: int | None, max_blocks: int, hi_force: float) -> tuple[dict[int, list[BlockFit]], list[int], dict[int, float]]:
+    """Virgin fits for every candidate count (each starting also from the previous count's
+    solution), and the counts to try in order: the given one, or all ranked by BIC."""
+    top = int(n_blocks) if n_blocks is not None else max_blocks
+    fits: dict[int, list[BlockFit]] = {}
+    previous = None
+    for nb in range(1, top + 1):
+        if n_blocks is not None and nb < top - 1:
+            continue  # a fixed count needs only its neighbour below (for the added-knot starts)
+        fits[nb] = _fit_virgin(vc, nb, previous, hi_force=hi_force)
+        previous = fits[nb][0]
+    u, _, _, _, _ = _virgin_points(vc)
+    # effective sample size from the residual of the richest fit (correlated along the branches)
+    n_eff = u.size / autocorrelation_inflation(_virgin_residual(vc, fits[top][0]))
+    if n_blocks is not None:
+        return fits, [top], {top: _bic(fits[top][0], u.size, n_eff)}
+    order, bic = _rank_block_counts({nb: fits[nb][0] for nb in range(1, top + 1)}, vc, u.size, n_eff)
+    return fits, order, bic
+
+
+def _kw_covariance(cov: NDArray[np.float64], k: NDArray[np.float64], w: NDArray[np.float64], *, log_w: bool) -> NDArray[np.float64]:
+    """Covariance of ``(k, w)`` from that of ``(log k, log d[, offset])`` (``w = k d``) or of
+    ``(log k, log w[, offset])``."""
+    nb = k.size
+    J = np.zeros((2 * nb, cov.shape[0]))
+    J[:nb, :nb] = np.diag(k)
+    if not log_w:
+        J[nb:, :nb] = np.diag(w)
+    J[nb:, nb:2 * nb] = np.diag(w)
+    return transform_covariance(cov, J)
+
+
 def _virgin_residual(vc: VirginCurve, fit: BlockFit) -> NDArray[np.float64]:
+    """Weighted residual of a virgin fit at the points, in the order of the record (so the
+    correlation along each branch shows)."""
     u, g, weight, _, _ = _virgin_points(vc)
     r = (virgin_model(u, fit.k, fit.d) - g) * weight
-    # in the order of the record, so correlation along the branches is seen
     order = np.argsort(vc.sample[vc.u > 0], kind="stable")
     return r[order]
