@@ -350,17 +350,18 @@ class _LinearBlocks:
         """``(k, offset, weighted residual)`` for the columns ``A`` (one per block)."""
         cols = np.column_stack([A, np.ones(A.shape[0])]) if self.offset else A
         Aw = cols * self.weight[:, None]
-        coef, *_ = np.linalg.lstsq(Aw, self.yw, rcond=None)
         nb = A.shape[1]
+        # the least-squares problem reduced to its few columns (QR), so NNLS stays cheap
+        if self.offset:
+            # NNLS on k with a free offset: the offset as the difference of two non-negative parts
+            Aw = np.column_stack([Aw, -Aw[:, -1]])
+        q, R = np.linalg.qr(Aw)
+        qty = q.T @ self.yw
+        coef, *_ = np.linalg.lstsq(R[:, : nb + 1] if self.offset else R, qty, rcond=None)
         if np.any(coef[:nb] < 0):
-            if self.offset:
-                # NNLS on k with a free offset: the offset split into two non-negative parts
-                aug = np.column_stack([Aw, -Aw[:, -1]])
-                sol, _ = nnls(aug, self.yw, maxiter=50 * aug.shape[1])
-                coef = np.concatenate([sol[:nb], [sol[nb] - sol[nb + 1]]])
-            else:
-                coef, _ = nnls(Aw, self.yw, maxiter=50 * Aw.shape[1])
-        r = (cols @ coef - self.y) * self.weight
+            sol, _ = nnls(R, qty, maxiter=50 * R.shape[1])
+            coef = np.concatenate([sol[:nb], [sol[nb] - sol[nb + 1]]]) if self.offset else sol
+        r = (cols @ coef[: cols.shape[1]] - self.y) * self.weight
         return coef[:nb], float(coef[nb]) if self.offset else 0.0, r
 
 
@@ -589,6 +590,7 @@ class _HysteresisData:
     F: NDArray[np.float64]
     sigma_x: NDArray[np.float64]    # position error of the model input, per sample
     sigma_f: float                  # force noise
+    sigma_reversal: float = 0.0     # position error at a reversal
 
 
 def _smoothed_position(x: NDArray[np.float64], turns: NDArray[np.int64], resolution: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -727,9 +729,10 @@ def _reversal_groups(x: NDArray[np.float64], samples: NDArray[np.int64], resolut
 
 
 def _hysteresis_covariance(fit: BlockFit, mask: NDArray[np.bool_], x: NDArray[np.float64], resolution: float,
-                           sigma_reversal: float) -> tuple[NDArray[np.float64], float, float]:
+                           sigma_reversal: float) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:
     """Covariance of ``(log k, log d, offset)`` of the force fit; returns it, the residual's
-    integrated autocorrelation time and chi2/dof.
+    integrated autocorrelation time and chi2/dof.  Returns the two parts of the covariance
+    (Jacobian, reversal errors), the autocorrelation time and chi2/dof.
 
     Two parts: the Jacobian covariance times the autocorrelation time (force noise and the
     position error of each sample, which the weights carry), and the effect of the position error
@@ -748,7 +751,7 @@ def _hysteresis_covariance(fit: BlockFit, mask: NDArray[np.bool_], x: NDArray[np
     chi2_dof = float(r @ r) / dof
     cov = covariance_from_jacobian(J, r) * inflation
     if sigma_reversal <= 0 or not np.all(np.isfinite(np.diag(cov))):
-        return cov, inflation, chi2_dof
+        return cov, np.zeros_like(cov), inflation, chi2_dof
     # the sample where each block last left saturation, for every sticking sample
     sat = np.abs(z_all) >= d[None, :] * (1 - 1e-9)
     last = np.maximum.accumulate(np.where(sat, np.arange(z_all.shape[0])[:, None], -1), axis=0)[mask]
@@ -765,7 +768,7 @@ def _hysteresis_covariance(fit: BlockFit, mask: NDArray[np.bool_], x: NDArray[np
     A = covariance_from_jacobian(J, np.ones(J.shape[0]) * np.sqrt(max(J.shape[0] - J.shape[1], 1) / J.shape[0]))
     # covariance_from_jacobian(J, r) = s^2 (J^T J)^-1; with |r|^2 = dof it is (J^T J)^-1
     cov_rev = A @ B @ B.T @ A * sigma_reversal**2
-    return cov + cov_rev, inflation, chi2_dof
+    return cov, cov_rev, inflation, chi2_dof
 
 
 # ----------------------------------------------------------------------------- 7. GMS polish
@@ -961,31 +964,27 @@ def fit_presliding(
     data = None
     if refine:
         xs, sigma_x = _smoothed_position(x_si, vc.turning_points, vc.resolution)
-        data = _HysteresisData(t_si, xs, F_si, sigma_x, max(vc.force_noise, 1e-9 * float(np.ptp(F_si))))
+        data = _HysteresisData(t_si, xs, F_si, sigma_x, max(vc.force_noise, 1e-9 * float(np.ptp(F_si))), _reversal_error(x_si, vc.resolution))
 
     # 6. the force fit of the best count whose blocks the whole record supports
-    for nb in order:
-        vfit = next((f for f in fits[nb] if f.admissible), fits[nb][0])
-        if data is None:
-            if vfit.admissible:
-                break
-            continue
-        others = [f for f in fits[nb] if f is not vfit and f.admissible][:1]
-        fit, mask, virgin = _fit_hysteresis(data, vfit, others, list(vc.turning_points), lo, hi_force, vc.resolution, progress)
-        if fit.admissible:
-            break
+    if data is None:
+        nb = next((n for n in order if any(f.admissible for f in fits[n])), 0)
+        if not nb:
+            raise IdentificationError(f"the virgin curve does not support {order[0]} blocks: {fits[order[0]][0].reason}")
+        vfit = next(f for f in fits[nb] if f.admissible)
+        force_bic: dict[int, float] = {}
     else:
-        reason = fit.reason if data is not None else vfit.reason
-        hint = " (try fewer blocks)" if n_blocks is not None else ""
-        raise IdentificationError(f"the data do not support {order[-1] if n_blocks is None else n_blocks} blocks: {reason}{hint}")
+        nb, vfit, fit, mask, virgin, force_bic = _force_stage(data, vc, fits, order, lo, hi_force, n_blocks is None, progress)
     info: dict[str, Any] = {"n_blocks": nb, "bic": {str(k): float(v) for k, v in bic.items()}, "virgin_bins": int(vc.u_bin.size),
                             "turning_points": int(vc.turning_points.size), "virgin_fit": {"k": vfit.k.tolist(), "w": vfit.w.tolist(), "knots": vfit.d.tolist()}}
+    if force_bic:
+        info["bic_force"] = {str(k): float(v) for k, v in force_bic.items()}
     if c_si is None:
         c_si = 1.0 / st_si.vs if st_si is not None else float(vfit.w.sum()) / float(np.median(np.diff(t_si)))
 
     if data is not None:
-        cov_q, inflation, chi2_dof = _hysteresis_covariance(fit, mask, data.x, vc.resolution, _reversal_error(x_si, vc.resolution))
-        k_si, w_si, cov_kw = fit.k, fit.w, _kw_covariance(cov_q, fit.k, fit.w, log_w=False)
+        cov_q, cov_rev, inflation, chi2_dof = _hysteresis_covariance(fit, mask, data.x, vc.resolution, data.sigma_reversal)
+        k_si, w_si, cov_kw = fit.k, fit.w, _kw_covariance(cov_q + cov_rev, fit.k, fit.w, log_w=False)
         offset = fit.offset
         if st_si is not None:
             # 7. the GMS level follows the Stribeck curve: refit with it
@@ -994,7 +993,10 @@ def fit_presliding(
             inflation, chi2_dof, offset = pinfo["stderr_inflation"], pinfo["chi2_dof"], pinfo["offset"]
             if pinfo.get("stribeck_propagated"):
                 info["stribeck_propagated"] = True
-            cov_kw = _kw_covariance(cov_p, k_si, w_si, log_w=True)
+            # the reversal errors act on the GMS as on the blocks: (log k, log d) -> (log k, log w)
+            T = np.eye(2 * nb + 1)
+            T[nb:2 * nb, :nb] = np.eye(nb)
+            cov_kw = _kw_covariance(cov_p + T @ cov_rev @ T.T, k_si, w_si, log_w=True)
             o = np.argsort(w_si / k_si)
             perm = np.concatenate((o, nb + o))
             k_si, w_si, cov_kw = k_si[o], w_si[o], cov_kw[np.ix_(perm, perm)]
@@ -1030,6 +1032,69 @@ def fit_presliding(
                                covariance=(list(params), cov_kw * np.outer(scale, scale)))
     emit(res, findings)
     return res
+
+
+def _determined(fit: BlockFit, mask: NDArray[np.bool_], data: _HysteresisData, resolution: float, limit: float = 0.5) -> bool:
+    """Every stiffness and break force of a force fit known to better than ``limit`` (relative
+    standard error): a block the data barely show does not justify a larger count."""
+    cov_q, cov_rev, _, _ = _hysteresis_covariance(fit, mask, data.x, resolution, data.sigma_reversal)
+    cov = _kw_covariance(cov_q + cov_rev, fit.k, fit.w, log_w=False)
+    rel = np.sqrt(np.clip(np.diag(cov), 0, np.inf)) / np.concatenate((fit.k, fit.w))
+    return bool(np.all(np.isfinite(rel)) and np.all(rel <= limit))
+
+
+def _force_stage(data: _HysteresisData, vc: VirginCurve, fits: dict[int, list[BlockFit]], order: list[int], lo: float, hi: float, compare: bool,
+                 progress: bool) -> tuple[int, BlockFit, BlockFit, NDArray[np.bool_], bool, dict[int, float]]:
+    """Force fits: the first count in ``order`` whose blocks the record supports; with
+    ``compare`` (the count is not given) its neighbours too, and the count whose force fit has
+    the best BIC on the same samples and weights (the force record holds more than the virgin
+    curve: the virgin loading, every branch beyond the Masing range)."""
+    runs: dict[int, tuple[BlockFit, BlockFit, NDArray[np.bool_], bool]] = {}
+
+    def run(nb: int) -> bool:
+        if nb not in fits:
+            return False
+        vfit = next((f for f in fits[nb] if f.admissible), fits[nb][0])
+        others = [f for f in fits[nb] if f is not vfit and f.admissible][:1]
+        fit, mask, virgin = _fit_hysteresis(data, vfit, others, list(vc.turning_points), lo, hi, vc.resolution, progress)
+        runs[nb] = (vfit, fit, mask, virgin)
+        return fit.admissible
+
+    chosen = next((nb for nb in order if run(nb)), None)
+    if chosen is None:
+        last = runs[order[-1]][1] if order[-1] in runs else fits[order[-1]][0]
+        hint = "" if compare else " (try fewer blocks)"
+        raise IdentificationError(f"the data do not support {order[0]} blocks: {last.reason}{hint}")
+    force_bic: dict[int, float] = {}
+    if compare:
+        _, ref, mask, _ = runs[chosen]
+        weight = ref.extra["weight"]
+
+        def score(nb: int) -> float:
+            f = runs[nb][1]
+            model = _play(data.t, data.x, f.d) @ f.k + f.offset
+            r = (model[mask] - data.F[mask]) * weight
+            return float(r @ r)
+
+        n = int(mask.sum())
+        n_eff = n / autocorrelation_inflation(ref.extra["residual"])
+        tried = {chosen}
+        best = chosen
+        for step in (-1, 1):
+            nb = chosen + step
+            while nb in fits and nb not in tried:
+                tried.add(nb)
+                if not run(nb) or (step > 0 and not _determined(runs[nb][1], runs[nb][2], data, vc.resolution)):
+                    break
+                force_bic[nb] = n_eff * np.log(score(nb) / n) + (2 * nb + 1) * np.log(n_eff)
+                force_bic.setdefault(best, n_eff * np.log(score(best) / n) + (2 * best + 1) * np.log(n_eff))
+                if force_bic[nb] >= force_bic[best]:
+                    break
+                best = nb
+                nb += step
+        chosen = best
+    vfit, fit, mask, virgin = runs[chosen]
+    return chosen, vfit, fit, mask, virgin, force_bic
 
 
 def _virgin_stage(vc: VirginCurve, n_blocks: int | None, max_blocks: int, hi_force: float) -> tuple[dict[int, list[BlockFit]], list[int], dict[int, float]]:
