@@ -120,8 +120,9 @@ def check_stderr(findings: Findings, parameters: Mapping[str, tuple[float, float
             findings.add("stderr", f"{name}: standard error {se / abs(value):.0%} of the value", name)
 
 
-def check_chi2(findings: Findings, chi2: float, dof: int, *, what: str = "", low: float = 0.5, high: float = 2.0) -> None:
-    """Flag chi2/dof far from 1: significant (p < 1e-3 either side) and outside ``[low, high]``."""
+def check_chi2(findings: Findings, chi2: float, dof: int, *, what: str = "", low: float | None = 0.5, high: float = 2.0) -> None:
+    """Flag chi2/dof far from 1: significant (p < 1e-3 either side) and outside ``[low, high]``
+    (``low=None``: only a large chi2, when the noise level was estimated from the residual)."""
     if dof < 1 or not np.isfinite(chi2):
         return
     ratio = chi2 / dof
@@ -130,7 +131,7 @@ def check_chi2(findings: Findings, chi2: float, dof: int, *, what: str = "", low
     if ratio > high and p_high < 1e-3:
         findings.add("chi2", f"chi2/dof = {ratio:.3g}{what}: the residual is larger than the noise the fit assumes "
                              "(wrong model, unmodelled effects or too small a noise estimate); the standard errors are rescaled by it")
-    elif ratio < low and p_low < 1e-3:
+    elif low is not None and ratio < low and p_low < 1e-3:
         findings.add("chi2", f"chi2/dof = {ratio:.3g}{what}: the residual is smaller than the stated noise (noise overestimated)")
 
 
@@ -153,46 +154,51 @@ def check_saturation(findings: Findings, name: str, values: NDArray[np.float64],
                                        "(saturated drive or sensor): the linear estimate is biased there", name)
 
 
-def feedback_strength(u: NDArray[np.float64], y: NDArray[np.float64], order: int = 10, max_samples: int = 40000) -> tuple[float, float]:
-    """How much the past output improves the prediction of the input beyond the input's own past
-    (a Granger test of feedback): returns the fractional reduction of the one-step prediction
-    error variance and its F-test p-value.  Open-loop data: ~0; data from a feedback loop: large."""
+def feedback_strength(u: NDArray[np.float64], y: NDArray[np.float64], *, na: int = 4, nb: int = 10, nf: int = 5,
+                      max_samples: int = 40000) -> tuple[float, float]:
+    """How much the present and future input explain of the output beyond an ARX model on the
+    past output and input (a sampled plant answers ``u[k]`` at ``y[k+1]`` at the earliest):
+    returns the fractional reduction of the residual variance and its F-test p-value.
+
+    Open-loop data: ~0 (the input does not know the output's noise).  In a feedback loop the
+    controller's next outputs react to ``y[k]``, noise included, so they explain part of it: the
+    same noise that biases an open-loop (H1) estimate of such data."""
     u = np.asarray(u, dtype=float)
     y = np.asarray(y, dtype=float)
-    if u.size > max_samples:
-        step = int(np.ceil(u.size / max_samples))
-        u, y = u[::step], y[::step]
-    n = u.size - order
-    if n < 10 * order:
+    n = u.size
+    lag = max(na, nb)
+    k = np.arange(lag, n - nf)
+    if k.size < 20 * (na + nb + nf):
         return 0.0, 1.0
-    su, sy = np.std(u) or 1.0, np.std(y) or 1.0
-    u = (u - u.mean()) / su
-    y = (y - y.mean()) / sy
-    target = u[order:]
-    past_u = np.column_stack([u[order - j : u.size - j] for j in range(1, order + 1)])
-    past_y = np.column_stack([y[order - j : y.size - j] for j in range(1, order + 1)])
+    if k.size > max_samples:
+        k = k[:: int(np.ceil(k.size / max_samples))]
+    u = (u - u.mean()) / (np.std(u) or 1.0)
+    y = (y - y.mean()) / (np.std(y) or 1.0)
+    past = [y[k - j] for j in range(1, na + 1)] + [u[k - j] for j in range(1, nb + 1)]
+    future = [u[k + j] for j in range(0, nf + 1)]
+    target = y[k]
 
-    def rss(a: NDArray[np.float64]) -> float:
-        a = np.column_stack([a, np.ones(n)])
+    def rss(cols: list[NDArray[np.float64]]) -> float:
+        a = np.column_stack(cols + [np.ones(k.size)])
         coef, *_ = np.linalg.lstsq(a, target, rcond=None)
         r = target - a @ coef
         return float(r @ r)
 
-    r0 = rss(past_u)
-    r1 = rss(np.column_stack([past_u, past_y]))
+    r0 = rss(past)
+    r1 = rss(past + future)
     if r0 <= 0:
         return 0.0, 1.0
-    dof = n - 2 * order - 1
-    f = ((r0 - r1) / order) / max(r1 / dof, 1e-300)
-    return float(1.0 - r1 / r0), float(stats.f.sf(f, order, dof))
+    dof = k.size - len(past) - len(future) - 1
+    f = ((r0 - r1) / len(future)) / max(r1 / dof, 1e-300)
+    return float(1.0 - r1 / r0), float(stats.f.sf(f, len(future), dof))
 
 
-def check_feedback(findings: Findings, u: NDArray[np.float64], y: NDArray[np.float64], *, threshold: float = 0.02) -> None:
+def check_feedback(findings: Findings, u: NDArray[np.float64], y: NDArray[np.float64], *, threshold: float = 0.03) -> None:
     """Flag an input that the past output predicts (feedback) when the open-loop estimator is used."""
     gain, p = feedback_strength(u, y)
     if gain > threshold and p < 1e-6:
-        findings.add("closed_loop", f"the past output explains {gain:.0%} of the input's innovation (feedback): closed-loop data "
-                                    "fed to the open-loop estimator are biased; give the external excitation (--excitation)")
+        findings.add("closed_loop", f"the input reacts to the output (feedback: the next inputs explain {gain:.0%} of the output's "
+                                    "noise): closed-loop data fed to the open-loop estimator are biased; give the external excitation (--excitation)")
 
 
 __all__ = ["Diagnostic", "Findings", "CODES", "emit", "format_block", "check_bounds", "check_stderr", "check_chi2", "check_saturation",
