@@ -186,8 +186,8 @@ def feedback_strength(u: NDArray[np.float64], y: NDArray[np.float64], *, na: int
 
     r0 = rss(past)
     r1 = rss(past + future)
-    if r0 <= 0:
-        return 0.0, 1.0
+    if r0 <= 1e-10 * float(target @ target):
+        return 0.0, 1.0  # a noise-free output: nothing for feedback to bias
     dof = k.size - len(past) - len(future) - 1
     f = ((r0 - r1) / len(future)) / max(r1 / dof, 1e-300)
     return float(1.0 - r1 / r0), float(stats.f.sf(f, len(future), dof))

@@ -64,8 +64,9 @@ def plot_static_map(res: "IdentificationResult") -> dict[str, "Figure"]:
         t = res.data["t"]
         a1.plot(t, res.data["position"], lw=0.8)
         a2.plot(t, res.data["raw_force"], lw=0.5, color="0.6")
+        kf = res.data.get("to_user", {}).get("force", 1.0)  # the plateaus were found in SI
         for pl in res.data["plateaus"]:
-            a2.plot(t[[pl.start, pl.stop - 1]], [pl.force, pl.force], "C1-", lw=2)
+            a2.plot(t[[pl.start, pl.stop - 1]], [pl.force * kf, pl.force * kf], "C1-", lw=2)
         for pl in res.data["rejected"]:
             a2.axvspan(t[pl.start], t[pl.stop - 1], color="r", alpha=0.15)
         a1.set_ylabel(f"position [{xu or 'data unit'}]")

@@ -48,6 +48,7 @@ from ..batch import simulate_friction_batch
 from ..errors import IdentificationError, InvalidInputError
 from ..models import GMS, MaxwellSlip, Stribeck
 from .diagnostics import Findings, check_chi2, check_stderr, emit
+from .sampling import estimate_resolution, white_noise_level
 from .results import IdentificationResult, autocorrelation_inflation, covariance_from_jacobian, transform_covariance
 
 #: Adjacent break displacements closer than this ratio are one block (not identifiable apart).
@@ -116,24 +117,6 @@ def _record_si(t: ArrayLike, position: ArrayLike, force: ArrayLike, f: Mapping[s
 
 
 # ----------------------------------------------------------------------------- 2. resolution, reversals
-
-
-def estimate_resolution(x: NDArray[np.float64]) -> float:
-    """Position resolution: the encoder quantum (smallest step) or the white-noise level (robust
-    scatter of second differences), whichever is larger; never below 1e-9 of the range."""
-    span = max(float(np.ptp(x)), 1e-300)
-    dx = np.abs(np.diff(x))
-    # steps below 1e-6 of the span are rounding of the file's decimal digits, not encoder counts
-    steps = dx[dx > 1e-6 * span]
-    quantum = float(steps.min()) if steps.size else 0.0
-    noise = 1.4826 * float(np.median(np.abs(np.diff(x, 2)))) / np.sqrt(6.0)
-    return max(quantum, noise, 1e-9 * span)
-
-
-def force_noise_level(F: NDArray[np.float64]) -> float:
-    """White force noise from the robust scatter of second differences (the pre-sliding force is
-    smooth between samples, its kinks are isolated)."""
-    return 1.4826 * float(np.median(np.abs(np.diff(F, 2)))) / np.sqrt(6.0)
 
 
 def _moving_average(x: NDArray[np.float64], m: int) -> NDArray[np.float64]:
@@ -273,7 +256,7 @@ def build_virgin_curve(
     if int((u > 0).sum()) < 20:
         raise IdentificationError("too few points on the virgin curve (are the amplitudes above the position resolution?)")
     ub, gb, sb, cb = _bin_virgin(u, g, n_bins, resolution)
-    return VirginCurve(u, g, ub, gb, sb, cb, np.asarray(turns), float(resolution), branch, sample, force_noise_level(F))
+    return VirginCurve(u, g, ub, gb, sb, cb, np.asarray(turns), float(resolution), branch, sample, white_noise_level(F))
 
 
 def virgin_model(u: NDArray[np.float64], k: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -614,8 +597,7 @@ def _smoothed_position(x: NDArray[np.float64], turns: NDArray[np.int64], resolut
 def _reversal_error(x: NDArray[np.float64], resolution: float) -> float:
     """Position error at a reversal: the quantisation error (smoothing does not reduce it on a
     flat top, where every sample has the same count) or the white noise, whichever dominates."""
-    noise = 1.4826 * float(np.median(np.abs(np.diff(x, 2)))) / np.sqrt(6.0)
-    return max(resolution / np.sqrt(12.0), noise / 3.0)
+    return max(resolution / np.sqrt(12.0), white_noise_level(x) / 3.0)
 
 
 def _hysteresis_weight(z: NDArray[np.float64], k: NDArray[np.float64], d: NDArray[np.float64], data: _HysteresisData) -> NDArray[np.float64]:
