@@ -438,8 +438,22 @@ def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: ND
         cols = [stack((Hs[i + 1] - Hs[0]) / sd) / (qs[i + 1][i] - q[i]) for i in range(n_q)]
         return np.column_stack(cols)
 
-    x0 = np.clip(q0[:n_q], lo, hi)
-    sol = least_squares(resid, x0, jac=jac, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=40)
+    # the direct fit's b and c can be far off where leakage biased it (resonances below or at the
+    # lowest bins): a few rescaled starts, judged on this objective, the two best polished
+    starts = []
+    for fb in (1.0, 0.1):
+        for fc in (1.0, 0.1, 0.01, 0.0, 10.0):
+            qs = q0[:n_q].copy()
+            qs[1] *= fb
+            qs[2] *= fc
+            starts.append(np.clip(qs, lo, hi))
+    costs = [float(np.sum(v**2)) for v in (stack((h - H_meas) / sd) for h in model(starts))]
+    sol = None
+    for i in np.argsort(costs)[:2]:
+        cand = least_squares(resid, starts[i], jac=jac, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=40)
+        if sol is None or cand.cost < sol.cost:
+            sol = cand
+    assert sol is not None
     # the bins' standard deviation from the output noise the fitted model leaves, v = y - P u
     # simulated in the time domain (a per-bin difference of spectra is swamped by leakage where
     # the response is large): var(H) = S_rr S_vv / (n |S_ru|^2), n the number of segments

@@ -654,45 +654,53 @@ def _vp_fit_hysteresis(data: _HysteresisData, d0: NDArray[np.float64], k0: NDArr
 
 def _fit_hysteresis(data: _HysteresisData, start: BlockFit, others: list[BlockFit], turns: list[int], lo: float, hi: float, resolution: float,
                     progress: bool) -> tuple[BlockFit, NDArray[np.bool_], bool]:
-    """The force fit over the samples whose block state is known (every block saturated once), or
-    over the whole record when it is shown to start virgin; returns the fit, the samples used and
-    whether the virgin start was accepted."""
+    """The force fit over the whole record if it starts virgin, else over the samples whose block
+    state is known (every block saturated once); returns the fit, the samples used and whether
+    the virgin start was accepted.
+
+    A virgin start is accepted when the fit over the whole record explains the part before the
+    known-state sample as well as the rest (a random initial state leaves a force error of the
+    order of a break force there, that no block set fits)."""
     n = data.t.size
-    with Progress("pre-sliding hysteresis fit", enabled=progress) as prog:
-        s0 = min(_known_state_start(data.x, turns, float(start.d.max())), n - 10 * (2 * start.k.size + 1))
-        mask = np.zeros(n, dtype=bool)
-        mask[max(s0, 0):] = True
+    cands = [start] + others
+    if start.extra.get("beyond"):
+        # the last block breaks beyond the virgin curve: start it at a few places up to the
+        # largest half-swing of the record
+        for dn in np.geomspace(start.d[-1], 0.9 * hi, 4)[1:]:
+            cands.append(BlockFit(start.k, np.concatenate((start.d[:-1], [dn])), start.rss, True))
+    min_samples = 10 * (2 * start.k.size + 1)
+
+    def best_of(mask: NDArray[np.bool_], prog: Progress) -> BlockFit:
         best = None
-        cands = [start] + others
-        if start.extra.get("beyond"):
-            # the last block breaks beyond the virgin curve: start it at a few places up to the
-            # largest half-swing of the record
-            for dn in np.geomspace(start.d[-1], 0.9 * hi, 4)[1:]:
-                cands.append(BlockFit(start.k, np.concatenate((start.d[:-1], [dn])), start.rss, True))
         for cand in cands:
             fit = _vp_fit_hysteresis(data, cand.d, cand.k, mask, lo, hi, resolution, prog)
             if best is None or (fit.admissible, -fit.rss) > (best.admissible, -best.rss):
                 best = fit
         assert best is not None
-        s1 = min(_known_state_start(data.x, turns, float(best.d.max())), n - 10 * (2 * start.k.size + 1))
-        if s1 > s0:
-            # the fitted largest block breaks later than the start's: its state is known later
-            s0 = s1
-            mask[:] = False
-            mask[s0:] = True
-            best = _vp_fit_hysteresis(data, best.d, best.k, mask, lo, hi, resolution, prog)
-        virgin = False
+        return best
+
+    def known_from(fit: BlockFit) -> int:
+        return min(_known_state_start(data.x, turns, float(fit.d.max())), n - min_samples)
+
+    with Progress("pre-sliding hysteresis fit", enabled=progress) as prog:
+        whole = np.ones(n, dtype=bool)
+        best = best_of(whole, prog)
+        s0 = known_from(best)
+        virgin = True
         if s0 > 0:
-            # does the record start virgin?  The blocks simulated from zero must explain the early
-            # part as well as the rest (a random initial state leaves a force error of order w)
-            z = _play(data.t, data.x, best.d)
-            wgt = _hysteresis_weight(z, best.k, best.d, data)
-            r_all = (z @ best.k + best.offset - data.F) * wgt
-            early = float(np.mean(r_all[:s0] ** 2))
-            late = float(np.mean(r_all[mask] ** 2))
-            if early <= 2.0 * late + 1.0:
-                virgin = True
-                mask[:] = True
+            r = best.extra["residual"]
+            early, late = float(np.mean(r[:s0] ** 2)), float(np.mean(r[s0:] ** 2))
+            virgin = early <= 2.0 * late + 1.0
+        mask = whole
+        if not virgin:
+            mask = np.zeros(n, dtype=bool)
+            mask[s0:] = True
+            best = best_of(mask, prog)
+            s1 = known_from(best)
+            if s1 > s0:
+                # the fitted largest block breaks later than the start's: its state is known later
+                mask[:] = False
+                mask[s1:] = True
                 best = _vp_fit_hysteresis(data, best.d, best.k, mask, lo, hi, resolution, prog)
         # the weights depend on the blocks: once more with the fitted ones
         best = _vp_fit_hysteresis(data, best.d, best.k, mask, lo, hi, resolution, prog, max_nfev=30)
