@@ -49,7 +49,7 @@ def test_static_map_raw_run_from_mat(tmp_path, capsys):
 
 def test_presliding_cli(tmp_path):
     g = GMS.from_break_forces([1e6, 1e5], [1.0, 2.0], 1e5)
-    d = VirtualRig(Plant(1.0, 0, 0), g, PID(0.0), encoder=1e-9, force_noise=1e-3).sinusoid_test([2e-6, 1e-4], 0.5, cycles=2, seed=0)
+    d = VirtualRig(Plant(1.0, 0, 0), g, None, encoder=1e-9, force_noise=1e-3).sinusoid_test([2e-6, 1e-4], 0.5, cycles=2, seed=0)
     f = _csv(tmp_path / "sine.csv", {"time": d["t"], "x": d["position"], "F": d["force"]})
     out = tmp_path / "ps.json"
     assert main(["identify", "presliding", f, "--time", "time", "--position", "x", "--force", "F", "--blocks", "2", "--json", str(out), "--plot", str(tmp_path / "p"), "--quiet"]) == 0
@@ -64,7 +64,7 @@ def test_presliding_cli(tmp_path):
 
 def test_plant_cli(tmp_path):
     plant = presets.paper_plant()
-    d = VirtualRig(plant, None, PID(0.0), dt=5e-4, encoder=5e-7).noise_test(10.0, 5.0, (0.5, 300.0), seed=3)
+    d = VirtualRig(plant, None, None, dt=5e-4, encoder=5e-7).noise_test(10.0, 5.0, (0.5, 300.0), seed=3)
     f = _csv(tmp_path / "frf.csv", {"t": d["t"], "u": d["input"], "y": d["output"]})
     out = tmp_path / "plant.json"
     assert main(["identify", "plant", f, "--time", "t", "--input", "u", "--output", "y", "--fmin", "1", "--fmax", "300", "--json", str(out), "--plot", str(tmp_path / "b")]) == 0

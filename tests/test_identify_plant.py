@@ -18,7 +18,7 @@ def test_plant_round_trip_over_seeds_truth_inside_uncertainty():
     plant = presets.paper_plant()
     inside, n = 0, 0
     for seed in range(6):
-        rig = VirtualRig(plant, None, PID(0.0), dt=5e-4, encoder=5e-7)
+        rig = VirtualRig(plant, None, None, dt=5e-4, encoder=5e-7)
         d = rig.noise_test(20.0, 5.0, (0.5, 300.0), seed=seed)
         res = fit_plant(estimate_frf(d["t"], d["input"], d["output"]), fmin=1.0, fmax=300.0)
         for k, v in _truth(plant).items():
@@ -33,7 +33,7 @@ def test_plant_round_trip_over_seeds_truth_inside_uncertainty():
 def test_plant_other_parameters_units_rate_and_bad_start():
     """A lightly damped axis sampled at 4 kHz, positions in um, time in ms."""
     plant = Plant(a=3.0, b=20.0, c=4.0e4, delay=0.6e-3)
-    rig = VirtualRig(plant, None, PID(0.0), dt=2.5e-4, position_noise=2e-7)
+    rig = VirtualRig(plant, None, None, dt=2.5e-4, position_noise=2e-7)
     d = rig.noise_test(12.0, 0.05, (1.0, 800.0), seed=11)
     t_ms, y_um = d["t"] * 1e3, d["output"] * 1e6
     frf = estimate_frf(t_ms, d["input"], y_um, nperseg=4096)  # ~1 Hz bins resolve the 3 Hz-wide resonance
@@ -64,7 +64,7 @@ def test_closed_loop_joint_input_output_estimate():
 def test_python_control_export():
     control = pytest.importorskip("control")
     plant = presets.paper_plant()
-    rig = VirtualRig(plant, None, PID(0.0), dt=5e-4)
+    rig = VirtualRig(plant, None, None, dt=5e-4)
     d = rig.noise_test(4.0, 5.0, (0.5, 300.0), seed=0)
     frf = estimate_frf(d["t"], d["input"], d["output"])
     res = fit_plant(frf, fmin=1.0, fmax=300.0)
@@ -78,7 +78,7 @@ def test_revision_recovers_mechanics_with_gms_in_the_loop():
     """Friction biases the linear fit (apparent c ~2.5x); revision with the friction in the loop
     recovers the rig's true A, B, C."""
     plant, gms = presets.paper_plant(), presets.paper_gms()
-    rig = VirtualRig(plant, gms, PID(0.0), dt=5e-4, encoder=5e-7)
+    rig = VirtualRig(plant, gms, None, dt=5e-4, encoder=5e-7)
     d = rig.noise_test(12.0, 5.0, (0.5, 300.0), seed=4)
     lin = fit_plant(estimate_frf(d["t"], d["input"], d["output"]), fmin=1.0, fmax=300.0)
     assert lin.value("c") > plant.c + 3 * lin.stderr("c")  # the apparent plant is biased

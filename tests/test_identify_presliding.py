@@ -9,7 +9,7 @@ from gmsfric.identify import VirtualRig, build_virgin_curve, fit_presliding
 
 
 def _rig(gms, **kw):
-    return VirtualRig(Plant(1.0, 0.0, 0.0), gms, PID(0.0), **kw)
+    return VirtualRig(Plant(1.0, 0.0, 0.0), gms, None, **kw)
 
 
 def _sorted_truth(g: GMS):

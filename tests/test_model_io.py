@@ -3,6 +3,7 @@ SI model; legacy files are converted with the unit table; nothing is read with a
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -149,8 +150,9 @@ def test_plant_needs_a_force_gain_to_load(frf, tmp_path):
     bare.to_json(tmp_path / "bare.json")
     with pytest.raises(ModelFormatError, match="no force gain.*--force-gain"):
         load_model(tmp_path / "bare.json")
-    mm = fit_plant(frf.__class__(frf.f, frf.H * 1e3, frf.coherence, frf.n_averages, frf.dt, frf.bin_correlation), fmin=1.0, fmax=300.0,
-                   output_unit="mm", force_gain=35e3, force_gain_unit="mN/V")
+    # the same FRF and record with the output in mm (fit_plant also uses the record the FRF came from)
+    in_mm = dataclasses.replace(frf, H=frf.H * 1e3, record=dataclasses.replace(frf.record, output=frf.record.output * 1e3))
+    mm = fit_plant(in_mm, fmin=1.0, fmax=300.0, output_unit="mm", force_gain=35e3, force_gain_unit="mN/V")
     mm.to_json(tmp_path / "mm.json")
     q = load_model(tmp_path / "mm.json")
     assert _rel(q.a, res.model_object.a) < 1e-6 and _rel(q.force_gain, 35.0) < 1e-12

@@ -5,6 +5,8 @@
 ``except ValueError`` keeps working.  Runs that produce non-finite values raise
 ``SimulationError``; work that cannot fit in memory ``ResourceError`` (a ``MemoryError``); a run
 interrupted by Ctrl-C ``KeyboardInterrupt``.  The compiled core raises the same classes.
+A fit that ran but should not be trusted as it stands warns with ``FitWarning`` (a
+``UserWarning``).
 """
 
 from __future__ import annotations
@@ -20,4 +22,10 @@ class IdentificationError(GmsfricError, RuntimeError):
     """An identification could not produce a trustworthy result (too few points, no convergence)."""
 
 
-__all__ = ["GmsfricError", "InvalidInputError", "SimulationError", "ResourceError", "DataError", "IdentificationError"]
+class FitWarning(UserWarning):
+    """A fit finished but a finding makes it less trustworthy than its table suggests: a
+    parameter at a bound, a non-physical ordering, chi2/dof far from 1, a standard error over
+    100 %, data that do not cover a parameter, saturated or closed-loop data."""
+
+
+__all__ = ["GmsfricError", "InvalidInputError", "SimulationError", "ResourceError", "DataError", "IdentificationError", "FitWarning"]

@@ -4,11 +4,17 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import units as _units
 from ..cli import Run, declare_files, int_at_least, non_negative_float, non_negative_int, positive_float, positive_int, positive_or_inf
-from ..errors import DataError
-from ..io import load_columns, read_table
+from ..errors import DataError, FitWarning
+from ..io import Table, load_columns, read_table
+from .diagnostics import format_block
 from .results import IdentificationResult
 
 
@@ -19,34 +25,46 @@ def _common(p: argparse.ArgumentParser) -> None:
     declare_files(p, inputs=("file",), outputs=("json",), output_dirs=("plot",))
 
 
+def _force_source(p: argparse.ArgumentParser) -> None:
+    """``--force COL`` or, as in ``gmsfric loop``, ``--command COL --gain G``."""
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--force", metavar="COL", help="force column (in --force-unit)")
+    g.add_argument("--command", dest="command_col", metavar="COL", help="drive command column: force = gain x command (needs --gain)")
+    p.add_argument("--gain", metavar="G", help="drive gain, N per command unit: a number or a scalar name in the file")
+    p.add_argument("--force-unit", default="N", help="unit of the force column and of the reported forces, e.g. N, mN, N m (rotary)")
+
+
 def register(subparsers: Any) -> None:
     """Add the ``identify`` command (three subcommands) and the ``paper`` command."""
     p = subparsers.add_parser("identify", help="identify friction / plant parameters from a measurement file",
-                              description="Identification from measurement files: static map, pre-sliding blocks, plant.")
+                              description="Identification from measurement files: static map, pre-sliding blocks, plant.  The data are "
+                                          "converted to SI once (--*-unit); the tables and the JSON parameters are in the file's units, "
+                                          "the JSON's model document in SI.")
     sub = p.add_subparsers(dest="what", metavar="WHAT", required=True)
 
     s = sub.add_parser("static-map", help="static friction map (eq. 2) from steady points or a raw constant-velocity run")
     _common(s)
     s.add_argument("--velocity", metavar="COL", help="column of steady velocities (table mode)")
-    s.add_argument("--force", metavar="COL", required=True, help="column of (average) friction forces")
+    _force_source(s)
     s.add_argument("--time", metavar="COL", help="time column (raw-run mode)")
     s.add_argument("--position", metavar="COL", help="position column (raw-run mode)")
     s.add_argument("--per-direction", action="store_true", help="also fit each direction on its own")
     s.add_argument("--bootstrap", type=non_negative_int, default=0, metavar="N", help="bootstrap resamples for a second standard error")
-    s.add_argument("--velocity-unit", default="m/s", help="unit of the velocities (raw run: position unit / time unit), e.g. mm/s, rad/s")
-    s.add_argument("--force-unit", default="N", help="unit of the forces, e.g. N, mN, N m (rotary)")
+    s.add_argument("--velocity-unit", default=None,
+                   help="unit of the velocity column (table mode, default m/s), or of the reported velocities (raw run: default position unit / time unit)")
+    s.add_argument("--position-unit", default=None, help="unit of the position column (raw run, default m), e.g. mm, um, rad")
+    s.add_argument("--time-unit", default="s", help="unit of the time column (raw run), e.g. s, ms")
     s.set_defaults(func=_static_map)
 
-    q = sub.add_parser("presliding", help="GMS blocks k_i, w_i from a virgin-curve test (small and large sinusoids)")
+    q = sub.add_parser("presliding", help="GMS blocks k_i, w_i from a record with reversals (virgin-curve test or hysteresis)")
     _common(q)
     q.add_argument("--time", metavar="COL", required=True)
     q.add_argument("--position", metavar="COL", required=True)
-    q.add_argument("--force", metavar="COL", required=True)
+    _force_source(q)
     q.add_argument("--blocks", type=positive_int, metavar="N", help="number of blocks (default: chosen by BIC)")
     q.add_argument("--max-blocks", type=positive_int, default=6, metavar="N", help="most blocks BIC tries (default 6)")
     q.add_argument("--no-refine", action="store_true", help="stop at the virgin-curve fit")
     q.add_argument("--position-unit", default="m")
-    q.add_argument("--force-unit", default="N")
     q.add_argument("--time-unit", default="s")
     q.set_defaults(func=_presliding)
 
@@ -59,7 +77,7 @@ def register(subparsers: Any) -> None:
     r.add_argument("--fmin", type=non_negative_float, default=0.0, help="lower end of the fitted band (frequency in 1/time unit)")
     r.add_argument("--fmax", type=positive_or_inf, default=float("inf"), help="upper end of the fitted band")
     r.add_argument("--nperseg", type=int_at_least(16), help="Welch segment length (samples, >= 16)")
-    r.add_argument("--no-zoh", action="store_true", help="do not model the zero-order hold (lump it into the delay)")
+    r.add_argument("--no-zoh", action="store_true", help="fit the continuous response and lump the zero-order hold into the delay")
     r.add_argument("--time-unit", default="s")
     r.add_argument("--input-unit", default="V")
     r.add_argument("--output-unit", default="m")
@@ -70,12 +88,15 @@ def register(subparsers: Any) -> None:
     _register_paper(subparsers)
 
 
-def _finish(res: IdentificationResult, args: argparse.Namespace, run: Run, columns: dict[str, Any], units: dict[str, str]) -> int:
+def _finish(res: IdentificationResult, args: argparse.Namespace, run: Run, columns: dict[str, Any], units: dict[str, str], **extra: Any) -> int:
     print(res.table())
-    extra = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str)) and not isinstance(v, bool)}
-    if extra:
-        print("  " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in extra.items()))
-    res.provenance = run.provenance(columns=columns, units=units)
+    info = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str)) and not isinstance(v, bool)}
+    if info:
+        print("  " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in info.items()))
+    block = format_block(res.diagnostics)
+    if block:
+        print(block)
+    res.provenance = run.provenance(columns=columns, units=units, **extra)
     if args.json:
         run.write_json(args.json, res)
     if args.plot:
@@ -83,41 +104,84 @@ def _finish(res: IdentificationResult, args: argparse.Namespace, run: Run, colum
     return 0
 
 
+def _forces(args: argparse.Namespace, table: Table, cols: dict[str, NDArray[np.float64]]) -> NDArray[np.float64]:
+    """The force column in ``--force-unit``: read, or ``gain x command`` (the gain in N per
+    command unit, as in ``gmsfric loop``)."""
+    if args.command_col is None:
+        return cols["force"]
+    gain = table.number(args.gain, role="gain")
+    if gain == 0 or not np.isfinite(gain):
+        raise DataError(f"{table.source}: drive gain {args.gain!r} is {gain}: it must be a non-zero finite number")
+    return gain * cols["command"] / _units.factor(args.force_unit, "force", name="--force-unit")  # type: ignore[no-any-return]
+
+
+def _check_force_source(args: argparse.Namespace) -> None:
+    if args.command_col is not None and args.gain is None:
+        raise DataError("--command needs --gain (a number or a scalar name in the file)")
+    if args.command_col is None and args.gain is not None:
+        raise DataError("--gain only goes with --command")
+
+
 def _static_map(args: argparse.Namespace, run: Run) -> int:
     from .static_map import fit_static_map, fit_static_map_from_run, static_map_units
 
-    static_map_units(args.velocity_unit, args.force_unit)
+    _check_force_source(args)
     raw = args.time is not None or args.position is not None
     if raw and args.velocity is not None:
         raise DataError("give either --velocity (steady points) or --time and --position (raw run), not both")
     if raw and (args.time is None or args.position is None):
-        raise DataError("a raw run needs both --time and --position (and --force)")
+        raise DataError("a raw run needs both --time and --position (and --force or --command)")
     if not raw and args.velocity is None:
         raise DataError("give --velocity COL (steady points) or --time COL --position COL (raw run)")
-    table = read_table(args.file)
-    units = {"velocity": args.velocity_unit, "force": args.force_unit}
+    if not raw and args.position_unit is not None:
+        raise DataError("--position-unit goes with a raw run (--time and --position)")
+    force_col = {"force": args.force} if args.command_col is None else {"command": args.command_col}
     if raw:
-        columns = {"time": args.time, "position": args.position, "force": args.force}
+        pos_unit = args.position_unit or ("m" if args.velocity_unit is None else None)
+        units = {"time": args.time_unit, "force": args.force_unit, **({"position": pos_unit} if pos_unit else {})}
+        if args.velocity_unit is not None:
+            units["velocity"] = args.velocity_unit
+        # every unit checked before the file is read
+        if pos_unit is not None:
+            _units.check(args.time_unit, "time", name="--time-unit")
+            _units.check(pos_unit, "position", name="--position-unit")
+        static_map_units(args.velocity_unit or _units.ratio(pos_unit or "m", args.time_unit), args.force_unit)
+        table = read_table(args.file)
+        columns = {"time": args.time, "position": args.position, **force_col}
         cols = load_columns(table, columns, min_samples=50)
-        res = fit_static_map_from_run(cols["time"], cols["position"], cols["force"], per_direction=args.per_direction, bootstrap=args.bootstrap,
-                                      velocity_unit=args.velocity_unit, force_unit=args.force_unit, progress=run.progress)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FitWarning)
+            res = fit_static_map_from_run(cols["time"], cols["position"], _forces(args, table, cols), per_direction=args.per_direction,
+                                          bootstrap=args.bootstrap, position_unit=pos_unit, time_unit=args.time_unit,
+                                          velocity_unit=args.velocity_unit, force_unit=args.force_unit, progress=run.progress)
     else:
-        columns = {"velocity": args.velocity, "force": args.force}
+        vel_unit = args.velocity_unit or "m/s"
+        static_map_units(vel_unit, args.force_unit)
+        units = {"velocity": vel_unit, "force": args.force_unit}
+        table = read_table(args.file)
+        columns = {"velocity": args.velocity, **force_col}
         cols = load_columns(table, columns, min_samples=2)
-        res = fit_static_map(cols["velocity"], cols["force"], per_direction=args.per_direction, bootstrap=args.bootstrap,
-                             velocity_unit=args.velocity_unit, force_unit=args.force_unit, progress=run.progress)
-    return _finish(res, args, run, columns, units)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FitWarning)
+            res = fit_static_map(cols["velocity"], _forces(args, table, cols), per_direction=args.per_direction, bootstrap=args.bootstrap,
+                                 velocity_unit=vel_unit, force_unit=args.force_unit, progress=run.progress)
+    return _finish(res, args, run, columns, units, gain=args.gain)
 
 
 def _presliding(args: argparse.Namespace, run: Run) -> int:
     from .presliding import fit_presliding, presliding_units
 
+    _check_force_source(args)
     presliding_units(args.position_unit, args.force_unit, args.time_unit)
-    columns = {"time": args.time, "position": args.position, "force": args.force}
-    cols = load_columns(args.file, columns, min_samples=50)
-    res = fit_presliding(cols["time"], cols["position"], cols["force"], n_blocks=args.blocks, max_blocks=args.max_blocks, refine=not args.no_refine,
-                         position_unit=args.position_unit, force_unit=args.force_unit, time_unit=args.time_unit, progress=run.progress)
-    return _finish(res, args, run, columns, {"time": args.time_unit, "position": args.position_unit, "force": args.force_unit})
+    table = read_table(args.file)
+    columns = {"time": args.time, "position": args.position, **({"force": args.force} if args.command_col is None else {"command": args.command_col})}
+    cols = load_columns(table, columns, min_samples=50)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FitWarning)
+        res = fit_presliding(cols["time"], cols["position"], _forces(args, table, cols), n_blocks=args.blocks, max_blocks=args.max_blocks,
+                             refine=not args.no_refine, position_unit=args.position_unit, force_unit=args.force_unit, time_unit=args.time_unit,
+                             progress=run.progress)
+    return _finish(res, args, run, columns, {"time": args.time_unit, "position": args.position_unit, "force": args.force_unit}, gain=args.gain)
 
 
 def _plant(args: argparse.Namespace, run: Run) -> int:
@@ -128,9 +192,11 @@ def _plant(args: argparse.Namespace, run: Run) -> int:
         raise DataError(f"--fmin {args.fmin:g} must be below --fmax {args.fmax:g}")
     columns = {"time": args.time, "input": args.input, "output": args.output, "excitation": args.excitation}
     cols = load_columns(args.file, {k: v for k, v in columns.items() if v is not None}, min_samples=256)
-    frf = estimate_frf(cols["time"], cols["input"], cols["output"], excitation=cols.get("excitation"), nperseg=args.nperseg)
-    res = fit_plant(frf, fmin=args.fmin, fmax=args.fmax, zoh=not args.no_zoh, time_unit=args.time_unit, input_unit=args.input_unit, output_unit=args.output_unit,
-                    force_gain=args.force_gain, force_gain_unit=args.force_gain_unit)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FitWarning)
+        frf = estimate_frf(cols["time"], cols["input"], cols["output"], excitation=cols.get("excitation"), nperseg=args.nperseg)
+        res = fit_plant(frf, fmin=args.fmin, fmax=args.fmax, zoh=not args.no_zoh, time_unit=args.time_unit, input_unit=args.input_unit,
+                        output_unit=args.output_unit, force_gain=args.force_gain, force_gain_unit=args.force_gain_unit)
     units = {"time": args.time_unit, "input": args.input_unit, "output": args.output_unit}
     if args.force_gain is not None:
         units["force_gain"] = fg_unit

@@ -14,7 +14,7 @@ the best one starts the nonlinear fit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -25,7 +25,9 @@ from scipy.optimize import least_squares
 from .. import units as _units
 from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
+from ..batch import simulate_batch
 from ..system import Plant
+from .diagnostics import Findings, check_bounds, check_chi2, check_feedback, check_saturation, check_stderr, emit
 from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
 
 PLANT_NAMES = ("a", "b", "c", "delay")
@@ -58,6 +60,54 @@ def plant_si(values: dict[str, float], units: dict[str, str]) -> Plant:
     return Plant(si["a"], si["b"], si["c"], si["delay"], si["force_gain"])
 
 
+@dataclass(frozen=True)
+class Record:
+    """The time series an FRF was estimated from and the Welch settings (data units)."""
+
+    input: NDArray[np.float64]
+    output: NDArray[np.float64]
+    excitation: NDArray[np.float64] | None
+    dt: float
+    nperseg: int
+    detrend: str | bool
+
+
+class _WelchRatio:
+    """``S_rx / S_ru`` of any signal ``x`` at chosen bins, with the Welch settings of a record
+    (Hann, 50 % overlap, per-segment detrend): the model's response estimated exactly as the
+    measured one was, so window leakage and the bias it causes near resonances and at the lowest
+    bins cancel (the model is compared with the data through the same estimator)."""
+
+    def __init__(self, record: Record, u: NDArray[np.float64], f: NDArray[np.float64]) -> None:
+        n, m = u.size, record.nperseg
+        step = m // 2
+        self.starts = np.arange(0, n - m + 1, step)
+        self.m = m
+        self.window = signal.get_window("hann", m)
+        self.detrend = record.detrend
+        df = 1.0 / (m * record.dt)
+        self.bins = np.rint(f / df).astype(int)
+        tt = np.arange(m) - (m - 1) / 2.0
+        self.tt = tt / np.sqrt(tt @ tt)
+        ref = u if record.excitation is None else record.excitation
+        self.R = self.spectra(ref[None, :])[0]
+        self.S_ru = np.sum(np.conj(self.R) * self.spectra(u[None, :])[0], axis=0)
+
+    def spectra(self, x: NDArray[np.float64]) -> NDArray[np.complex128]:
+        """Windowed, detrended segment spectra at the bins: ``(rows, segments, bins)``."""
+        seg = np.lib.stride_tricks.sliding_window_view(x, self.m, axis=-1)[:, self.starts, :]
+        if self.detrend == "linear":
+            seg = seg - seg.mean(axis=-1, keepdims=True)
+            seg = seg - (seg @ self.tt)[..., None] * self.tt
+        elif self.detrend == "constant":
+            seg = seg - seg.mean(axis=-1, keepdims=True)
+        return np.fft.rfft(seg * self.window, axis=-1)[..., self.bins]  # type: ignore[no-any-return]
+
+    def ratio(self, x: NDArray[np.float64]) -> NDArray[np.complex128]:
+        """``S_rx / S_ru`` per row of ``x``."""
+        return np.sum(np.conj(self.R)[None] * self.spectra(x), axis=1) / self.S_ru  # type: ignore[no-any-return]
+
+
 @dataclass
 class FRF:
     """A measured frequency response.
@@ -86,17 +136,21 @@ class FRF:
     n_averages: int
     dt: float = 0.0
     bin_correlation: float = 1.0
+    checks: dict[str, Any] = field(default_factory=dict)
+    record: "Record | None" = field(default=None, repr=False)
 
     def select(self, fmin: float = 0.0, fmax: float = np.inf) -> "FRF":
         """The bins with ``fmin <= f <= fmax``."""
         m = (self.f >= fmin) & (self.f <= fmax)
-        return FRF(self.f[m], self.H[m], self.coherence[m], self.n_averages, self.dt, self.bin_correlation)
+        return FRF(self.f[m], self.H[m], self.coherence[m], self.n_averages, self.dt, self.bin_correlation, dict(self.checks), self.record)
 
     @property
     def stderr(self) -> NDArray[np.float64]:
-        """Standard deviation of each complex bin, ``|H| sqrt((1-g^2)/(2 n g^2))``."""
+        """Standard deviation of the real (and of the imaginary) part of each bin from the
+        coherence, ``|H| sqrt((1-g^2)/(2 n g^2))``, the coherence capped at 0.9995 (no bin is taken
+        as exact).  :func:`fit_plant` refines it from the output noise the fitted model leaves."""
         g = np.clip(self.coherence, 1e-6, COHERENCE_CAP)
-        return np.abs(self.H) * np.sqrt((1 - g) / (2 * self.n_averages * g))
+        return np.abs(self.H) * np.sqrt((1 - g) / (2 * self.n_averages * g))  # type: ignore[no-any-return]
 
     def to_control(self) -> Any:
         """A python-control ``FrequencyResponseData`` (``control.frd``), omega in rad per time unit."""
@@ -172,7 +226,14 @@ def estimate_frf(
     w2 = win**2
     k = np.arange(nperseg)
     rho = [abs(np.sum(w2 * np.exp(-2j * np.pi * j * k / nperseg))) / np.sum(w2) for j in range(1, 4)]
-    return FRF(f[m], H[m], np.clip(coh[m], 0.0, 1.0), n_avg, 1.0 / fs, 1.0 + 2.0 * float(np.sum(np.square(rho))))
+    # findings about the data the fit will report: a clipped drive, feedback in open-loop data
+    pre = Findings()
+    check_saturation(pre, "the input", u)
+    if excitation is None:
+        check_feedback(pre, u, y)
+    checks: dict[str, Any] = {"closed_loop": excitation is not None, "findings": list(pre.items)}
+    record = Record(u, y, None if excitation is None else ref, 1.0 / fs, nperseg, detrend)
+    return FRF(f[m], H[m], np.clip(coh[m], 0.0, 1.0), n_avg, 1.0 / fs, 1.0 + 2.0 * float(np.sum(np.square(rho))), checks, record)
 
 
 def zoh_factor(f: NDArray[np.float64], dt: float) -> NDArray[np.complex128]:
@@ -184,10 +245,14 @@ def zoh_factor(f: NDArray[np.float64], dt: float) -> NDArray[np.complex128]:
 
 
 def plant_response(f: NDArray[np.float64], a: float, b: float, c: float, delay: float, dt: float = 0.0) -> NDArray[np.complex128]:
-    """``a / (s^2 + b s + c) exp(-s delay)`` at ``s = 2 pi i f``, times the zero-order hold of
-    period ``dt`` when ``dt > 0``."""
+    """``a / (s^2 + b s + c) exp(-s delay)`` at ``s = 2 pi i f``; with ``dt > 0`` the response of
+    that plant driven through a zero-order hold and sampled every ``dt`` (the exact step-invariant
+    discretisation, fractional delay included: what sampled data obey, aliasing and all;
+    :meth:`gmsfric.system.Plant.frequency_response`).  Any consistent units."""
+    if dt > 0:
+        return Plant(a, b, c, delay).frequency_response(f, dt)
     s = 2j * np.pi * f
-    return a / (s * s + b * s + c) * np.exp(-s * delay) * zoh_factor(f, dt)
+    return a / (s * s + b * s + c) * np.exp(-s * delay)  # type: ignore[no-any-return]
 
 
 def _levy(f: NDArray[np.float64], H: NDArray[np.complex128], w: NDArray[np.float64], tau: float) -> NDArray[np.float64] | None:
@@ -225,27 +290,30 @@ def fit_plant(
     Parameters
     ----------
     frf : FRF
-        From :func:`estimate_frf`.
+        From :func:`estimate_frf`, in the data's units (below).
     fmin, fmax : float
-        Frequency band of the fit.
+        Frequency band of the fit (1/time unit).
     min_coherence : float
         Bins below this coherence are left out.
     max_delay : float, optional
-        Upper end of the delay search; default one period of the highest fitted frequency.
+        Upper end of the delay search (time unit); default two periods of the highest fitted
+        frequency.
     fit_delay : bool
-        Fit the delay (else hold it at ``delay``).
+        Fit the delay (else hold it at ``delay``, time unit).
     force_gain : float, optional
         Force per drive-input unit (the motor constant), in ``force_gain_unit``: not identifiable
         from an FRF, carried into the returned :class:`~gmsfric.system.Plant` and the JSON.
         Without it the ``model_object`` carries 1 (so friction would enter unscaled) and the
         JSON's model document states no force gain, so it cannot be loaded as a Plant.
     zoh : bool
-        Model the zero-order hold of the sampled drive (``(1 - e^{-sT})/(sT)``, about ``T/2`` of
-        extra delay), so ``delay`` is the plant's own; ``False`` lumps the hold into ``delay``
-        (as a plain continuous fit of the paper's kind would).
+        Fit the plant as sampled data see it: driven through a zero-order hold and sampled at the
+        FRF's rate (exact discretisation, fractional delay included), so ``delay`` is the plant's
+        own and no aliasing bias remains near the Nyquist frequency.  ``False`` fits the
+        continuous response and lumps the hold into ``delay`` (about half a sample more), as a
+        plain continuous fit of the paper's kind would.
     time_unit, input_unit, output_unit : str
-        Units of the data (any :mod:`gmsfric.units` reads); the parameters are reported in
-        them, ``model_object`` is converted to SI.
+        Units of the data (any :mod:`gmsfric.units` reads).  The FRF is converted to SI before
+        the fit; the parameters are reported in these units, ``model_object`` is in SI.
     force_gain_unit : str, optional
         Unit of ``force_gain``; default ``N/<input_unit>`` (``N m/<input_unit>`` when the output
         is an angle).
@@ -253,37 +321,171 @@ def fit_plant(
     Returns
     -------
     IdentificationResult
-        ``model="plant"``, parameters ``a b c delay``; ``model_object`` is a ``Plant`` in SI (when
-        the estimates are admissible).
+        ``model="plant"``, parameters ``a b c delay``; ``model_object`` a ``Plant`` in SI.
 
     Raises
     ------
     UnitError
         A unit unknown or not of its quantity (before any work).
+    IdentificationError
+        Fewer than 8 usable bins in the band.
     """
     units, force_gain_unit = plant_units(time_unit, input_unit, output_unit, force_gain_unit)
     if force_gain is not None:
         force_gain = positive("force_gain", force_gain)
+    kt = _units.factor(time_unit, "time", name="time_unit")
+    k_h = _units.factor(output_unit, "position", name="output_unit") / _units.factor(input_unit, "drive", name="input_unit")
     sel = frf.select(fmin, fmax)
     m = sel.coherence >= min_coherence
-    f, H, g = sel.f[m], sel.H[m], sel.coherence[m]
+    # the fit runs in SI: frequencies in Hz, response in m/V (or rad/A ...)
+    f, H, sd = sel.f[m] / kt, sel.H[m] * k_h, sel.stderr[m] * k_h
     if f.size < 8:
         raise IdentificationError(f"only {f.size} frequency bins with coherence >= {min_coherence} in the band: need at least 8 (more excitation or a longer record)")
-    sd = FRF(f, H, g, sel.n_averages).stderr
-    wrel = np.abs(H) / np.maximum(sd, 1e-300)  # 1 / relative standard deviation
-    if max_delay is None:
-        max_delay = 1.0 / f.max()
+    sd = np.maximum(sd, 1e-12 * np.abs(H))
+    T = sel.dt * kt if zoh else 0.0
+    q, r = _fit_plant_si(f, H, sd, T, fit_delay, float(delay) * kt, None if max_delay is None else float(max_delay) * kt)
+    if zoh and sel.record is not None:
+        # the same fit against the model's FRF estimated exactly as the measured one (leakage)
+        k_u = _units.factor(input_unit, "drive", name="input_unit")
+        q, r = _refine_matched(q, r, sel.record, sel.f[m], H, sd, kt, k_u, k_h * k_u, fit_delay, float(delay) * kt)
+    jac = r.jac if fit_delay else r.jac[:, :3]
+    cov = covariance_from_jacobian(jac, r.fun) * frf.bin_correlation
+    se = np.sqrt(np.clip(np.diag(cov), 0, np.inf))
+    a_si = float(np.exp(q[0]))
+    tau_si = float(q[3]) if fit_delay else float(delay) * kt
+    values_si = {"a": a_si, "b": float(q[1]), "c": float(q[2]), "delay": tau_si}
+    se_si = {"a": a_si * se[0], "b": float(se[1]), "c": float(se[2]), "delay": float(se[3]) if fit_delay else 0.0}
+    findings = Findings()
+    for d in frf.checks.get("findings", []):
+        findings.add(d.code, d.message, d.parameter)
+    # parameters at their zero bound are reported as exactly zero (no relative error of a zero)
+    upper_delay = r.bounds_hi[3] if fit_delay else None
+    for name in ("b", "c", "delay"):
+        if name == "delay" and not fit_delay:
+            continue
+        scale = max(se_si[name], 1e-12 * {"b": 2 * np.pi * f.max(), "c": (2 * np.pi * f.max()) ** 2, "delay": 1.0 / f.max()}[name])
+        if values_si[name] <= 1e-6 * scale or values_si[name] == 0.0:
+            values_si[name] = 0.0
+            what = {"b": ": the data show no damping (or ask for a negative one)", "c": ": the data ask for a negative stiffness or do not show one",
+                    "delay": ": no delay found (or the band is too low to see it)"}[name]
+            findings.add("at_bound", f"{name} is at its lower bound 0{what}", name)
+    if fit_delay and upper_delay is not None:
+        check_bounds(findings, "delay", tau_si, None, float(upper_delay), what=" (the delay search's end: give --fmax or a longer band)")
+    dof = max(2 * f.size - (4 if fit_delay else 3), 1)
+    chi2 = float(r.fun @ r.fun)
+    # with the record, the bins' noise comes from the fit's own residual: only a large chi2 means something
+    check_chi2(findings, chi2, dof, what=" of the FRF fit", low=None if (zoh and sel.record is not None) else 0.5)
+    check_stderr(findings, {k: (values_si[k], se_si[k]) for k in PLANT_NAMES}, skip={k for k in PLANT_NAMES if values_si[k] == 0.0})
+    fn = np.sqrt(values_si["c"]) / (2 * np.pi)
+    if values_si["c"] > 0 and fn < f.min() / 10:
+        findings.add("coverage", f"c: the natural frequency {fn:.3g} Hz lies far below the lowest fitted bin {f.min():.3g} Hz (c is poorly determined)", "c")
+    # report in the data's units (the edge)
+    fac = {k: _units.factor(units[k], PLANT_QUANTITIES[k], name=f"units[{k!r}]") for k in PLANT_NAMES}
+    params = {k: (values_si[k] / fac[k], se_si[k] / fac[k]) for k in PLANT_NAMES}
+    info = {"zoh_dt": sel.dt if zoh else 0.0, "model": "sampled" if zoh else "continuous", "n_bins": int(f.size),
+            "band": [float(sel.f[m].min()), float(sel.f[m].max())], "chi2_per_dof": chi2 / dof, "n_averages": frf.n_averages}
+    info["force_gain"] = force_gain
+    if force_gain is not None:
+        units["force_gain"] = force_gain_unit
+    fg_si = 1.0 if force_gain is None else _units.to_si(force_gain, force_gain_unit, "force_gain", name="force_gain_unit")
+    plant = Plant(values_si["a"], values_si["b"], values_si["c"], values_si["delay"], fg_si)
+    # covariance of (a, b, c, delay) from that of (log a, b, c[, delay]); a held delay has none
+    jac_p = np.eye(4)[:, : cov.shape[0]] * np.array([a_si, 1.0, 1.0, 1.0])[:, None]
+    cov_si = transform_covariance(cov, jac_p)
+    inv = np.array([1.0 / fac[k] for k in PLANT_NAMES])
+    res = IdentificationResult("plant", params, units, info,
+                               data={"frf": frf, "fit_f": sel.f[m], "input_unit": input_unit, "output_unit": output_unit, "zoh": zoh},
+                               model_object=plant, covariance=(list(PLANT_NAMES), cov_si * np.outer(inv, inv)))
+    emit(res, findings)
+    return res
 
-    T = sel.dt if zoh else 0.0
+
+def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64],
+                    kt: float, k_u: float, k_y: float, fit_delay: bool, delay: float) -> tuple[NDArray[np.float64], Any]:
+    """NLS of ``(log a, b, c, delay)`` where the model's response is the Welch estimate of the
+    sampled plant's simulated output for the recorded input (in SI), at the fitted bins."""
+    u_si = record.input * k_u
+    dt_si = record.dt * kt
+    welch = _WelchRatio(record, u_si, f_data)
+    H_meas = welch.ratio(record.output[None, :] * k_y)[0]
+    n_q = 4 if fit_delay else 3
+    lo, hi = np.array([-np.inf, 0.0, 0.0, 0.0]), np.asarray(r0.bounds_hi, dtype=float)
+    lo, hi = lo[:n_q], hi[:n_q]
+    scale = np.array([1.0, 2 * np.pi * f_data.min() / kt, (2 * np.pi * f_data.min() / kt) ** 2, dt_si])[:n_q]
+
+    def plants(qs: list[NDArray[np.float64]]) -> list[Plant]:
+        return [Plant(float(np.exp(q[0])), float(q[1]), float(q[2]), float(q[3]) if fit_delay else delay) for q in qs]
+
+    def model(qs: list[NDArray[np.float64]]) -> NDArray[np.complex128]:
+        y = simulate_batch(plants(qs), None, None, None, dt_si, feedforward=u_si, record=("position",), threads=1, progress=False).position
+        return welch.ratio(y)
+
+    def stack(e: NDArray[np.complex128]) -> NDArray[np.float64]:
+        return np.concatenate([e.real, e.imag], axis=-1)  # type: ignore[no-any-return]
+
+    def resid(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        return stack((model([q])[0] - H_meas) / sd)
+
+    def jac(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        steps = 1e-6 * np.maximum(np.abs(q), scale)
+        qs = [q]
+        for i in range(n_q):
+            qi = q.copy()
+            # a forward step off a lower bound of zero, else backward near the upper bound
+            qi[i] += steps[i] if q[i] + steps[i] <= hi[i] else -steps[i]
+            qs.append(qi)
+        Hs = model(qs)
+        cols = [stack((Hs[i + 1] - Hs[0]) / sd) / (qs[i + 1][i] - q[i]) for i in range(n_q)]
+        return np.column_stack(cols)
+
+    # the direct fit's b and c can be far off where leakage biased it (resonances below or at the
+    # lowest bins): a few rescaled starts, judged on this objective, the two best polished
+    starts = []
+    for fb in (1.0, 0.1):
+        for fc in (1.0, 0.1, 0.01, 0.0, 10.0):
+            qs = q0[:n_q].copy()
+            qs[1] *= fb
+            qs[2] *= fc
+            starts.append(np.clip(qs, lo, hi))
+    costs = [float(np.sum(v**2)) for v in (stack((h - H_meas) / sd) for h in model(starts))]
+    sol = None
+    for i in np.argsort(costs)[:2]:
+        cand = least_squares(resid, starts[i], jac=jac, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=40)
+        if sol is None or cand.cost < sol.cost:
+            sol = cand
+    assert sol is not None
+    # the bins' standard deviation from the output noise the fitted model leaves, v = y - P u
+    # simulated in the time domain (a per-bin difference of spectra is swamped by leakage where
+    # the response is large): var(H) = S_rr S_vv / (n |S_ru|^2), n the number of segments
+    y_fit = simulate_batch(plants([sol.x]), None, None, None, dt_si, feedforward=u_si, record=("position",), threads=1, progress=False).position
+    V = welch.spectra(record.output[None, :] * k_y - y_fit)[0]
+    n_seg = V.shape[0]
+    S_vv, S_rr = np.mean(np.abs(V) ** 2, axis=0), np.mean(np.abs(welch.R) ** 2, axis=0)
+    sd_noise = np.sqrt(S_rr * S_vv / (2 * n_seg * np.abs(welch.S_ru / n_seg) ** 2))
+    sd[:] = np.maximum(sd_noise, 1e-9 * np.abs(H_meas))
+    sol = least_squares(resid, sol.x, jac=jac, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=20)
+    q = np.concatenate([sol.x, q0[n_q:]])
+    sol.bounds_hi = r0.bounds_hi
+    if not fit_delay:
+        sol.jac = np.column_stack([sol.jac, np.zeros(sol.jac.shape[0])])
+    return q, sol
+
+
+def _fit_plant_si(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, fit_delay: bool, delay: float,
+                  max_delay: float | None) -> tuple[NDArray[np.float64], Any]:
+    """NLS of ``(log a, b, c, delay)`` on the SI FRF, started from Levy's linear fit on a grid of
+    delays (the three best starts polished)."""
+    wrel = np.abs(H) / sd  # 1 / relative standard deviation
+    if max_delay is None:
+        max_delay = 2.0 / f.max()
     H_levy = H / zoh_factor(f, T)
 
     def resid(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        a, b, c = np.exp(q[0]), q[1], q[2]
         tau = q[3] if fit_delay else delay
-        e = (plant_response(f, a, b, c, tau, T) - H) / sd
+        e = (plant_response(f, float(np.exp(q[0])), float(q[1]), float(q[2]), float(tau), T) - H) / sd
         return np.concatenate([e.real, e.imag])
 
-    taus = np.linspace(0.0, max_delay, 81) if fit_delay else np.array([delay])
+    taus = np.linspace(0.0, max_delay, 161) if fit_delay else np.array([delay])
     starts = []
     for tau in taus:
         sol = _levy(f, H_levy, wrel, tau)
@@ -293,12 +495,11 @@ def fit_plant(
         starts.append((float(np.sum(resid(q) ** 2)), q))
     if not starts:
         # fall back on a rigid-body guess from the high-frequency magnitude
-        w2 = (2 * np.pi * f) ** 2
-        a0 = float(np.median(np.abs(H) * w2))
-        starts = [(0.0, np.array([np.log(max(a0, 1e-300)), 2 * np.pi * f.min(), 0.0, 0.0]))]
+        a0 = float(np.median(np.abs(H) * (2 * np.pi * f) ** 2))
+        starts = [(0.0, np.array([np.log(max(a0, 1e-300)), 2 * np.pi * f.min(), 0.0, delay]))]
     starts.sort(key=lambda s: s[0])
     lo = np.array([-np.inf, 0.0, 0.0, 0.0])
-    hi = np.array([np.inf, np.inf, np.inf, max(max_delay * 2, 1e-12)])
+    hi = np.array([np.inf, np.inf, np.inf, max(max_delay * 1.5, 1e-12)])
     best = None
     for _, q0 in starts[:3]:
         q0 = np.clip(q0, lo, hi * (1 - 1e-9))
@@ -308,34 +509,8 @@ def fit_plant(
         if best is None or r.cost < best.cost:
             best = r
     assert best is not None
-    q = best.x
-    jac = best.jac if fit_delay else best.jac[:, :3]
-    cov = covariance_from_jacobian(jac, best.fun) * frf.bin_correlation
-    se = np.sqrt(np.clip(np.diag(cov), 0, np.inf))
-    a = float(np.exp(q[0]))
-    tau = float(q[3]) if fit_delay else float(delay)
-    params = {
-        "a": (a, a * se[0]),
-        "b": (float(q[1]), float(se[1])),
-        "c": (float(q[2]), float(se[2])),
-        "delay": (tau, float(se[3]) if fit_delay else 0.0),
-    }
-    dof = max(2 * f.size - 4, 1)
-    info = {"zoh_dt": T, "n_bins": int(f.size), "band": [float(f.min()), float(f.max())], "chi2_per_dof": float(2 * best.cost / dof), "n_averages": frf.n_averages}
-    info["force_gain"] = force_gain
-    if force_gain is not None:
-        units["force_gain"] = force_gain_unit
-    plant = None
-    try:
-        plant = plant_si({"a": a, "b": params["b"][0], "c": params["c"][0], "delay": tau, "force_gain": 1.0 if force_gain is None else force_gain},
-                         {**units, "force_gain": "N/V" if force_gain is None else force_gain_unit})
-    except InvalidInputError:  # pragma: no cover
-        pass
-    # covariance of (a, b, c, delay) from that of (log a, b, c[, delay]); a held delay has none
-    jac_p = np.eye(4)[:, : cov.shape[0]] * np.array([a, 1.0, 1.0, 1.0])[:, None]
-    cov_p = transform_covariance(cov, jac_p)
-    return IdentificationResult("plant", params, units, info, data={"frf": frf, "fit_f": f, "input_unit": input_unit, "output_unit": output_unit},
-                                model_object=plant, covariance=(list(PLANT_NAMES), cov_p))
+    best.bounds_hi = hi
+    return best.x, best
 
 
 def plant_to_control(result: IdentificationResult, pade_order: int | None = None) -> Any:

@@ -64,8 +64,9 @@ def plot_static_map(res: "IdentificationResult") -> dict[str, "Figure"]:
         t = res.data["t"]
         a1.plot(t, res.data["position"], lw=0.8)
         a2.plot(t, res.data["raw_force"], lw=0.5, color="0.6")
+        kf = res.data.get("to_user", {}).get("force", 1.0)  # the plateaus were found in SI
         for pl in res.data["plateaus"]:
-            a2.plot(t[[pl.start, pl.stop - 1]], [pl.force, pl.force], "C1-", lw=2)
+            a2.plot(t[[pl.start, pl.stop - 1]], [pl.force * kf, pl.force * kf], "C1-", lw=2)
         for pl in res.data["rejected"]:
             a2.axvspan(t[pl.start], t[pl.stop - 1], color="r", alpha=0.15)
         a1.set_ylabel(f"position [{xu or 'data unit'}]")
@@ -76,47 +77,50 @@ def plot_static_map(res: "IdentificationResult") -> dict[str, "Figure"]:
 
 
 def plot_presliding(res: "IdentificationResult") -> dict[str, "Figure"]:
-    """Virgin curve with its knots (cf. paper Fig. 7) and the refined hysteresis (Fig. 6)."""
+    """Virgin curve with its knots (cf. paper Fig. 7) and the fitted hysteresis (Fig. 6), in the
+    data's units (the fit ran in SI)."""
     vc: VirginCurve = res.data["virgin"]
-    nb = res.info["n_blocks"]
-    k = np.array([res.value(f"k{i + 1}") for i in range(nb)])
-    w = np.array([res.value(f"w{i + 1}") for i in range(nb)])
+    f = res.data.get("to_si", {"position": 1.0, "force": 1.0, "time": 1.0})
+    kx, kf, kt = f["position"], f["force"], f["time"]
+    model = res.data.get("model")
+    k = np.asarray(model.k) if model is not None else np.array([res.value(f"k{i + 1}") for i in range(res.info["n_blocks"])]) * kf / kx
+    w = np.asarray(model.break_forces) if model is not None else np.array([res.value(f"w{i + 1}") for i in range(res.info["n_blocks"])]) * kf
     d = w / k
+    nb = k.size
     pu = res.data.get("force_unit", res.units.get("w1", ""))
     xu = res.data.get("position_unit", "")
     tu = res.data.get("time_unit", "")
     fig, (ax, axl) = new_figure(1, 2, figsize=(11.0, 4.5))
     uu = np.linspace(0, vc.u_bin.max(), 400)
-    ax.plot(vc.u, vc.g, ",", color="0.7", label="Masing branches (halved, shifted)")
-    ax.plot(vc.u_bin, vc.g_bin, "k.", ms=4, label="binned virgin curve")
-    ax.plot(uu, virgin_model(uu, k, d), "C0-", label=f"{nb} blocks")
-    ax.plot(d, virgin_model(d, k, d), "rs", ms=5, label="knots")
+    ax.plot(vc.u / kx, vc.g / kf, ",", color="0.7", label="Masing branches (halved, shifted)")
+    ax.plot(vc.u_bin / kx, vc.g_bin / kf, "k.", ms=4, label="binned virgin curve")
+    ax.plot(uu / kx, virgin_model(uu, k, d) / kf, "C0-", label=f"{nb} blocks")
+    ax.plot(d / kx, virgin_model(d, k, d) / kf, "rs", ms=5, label="knots")
     ax.set_xlabel(f"displacement [{xu}]")
     ax.set_ylabel(f"force [{pu}]")
     ax.set_title("virgin curve with knots (cf. paper Fig. 7)")
     ax.legend(fontsize="small")
     ul = np.geomspace(vc.u_bin.min(), vc.u_bin.max(), 400)
-    axl.semilogx(vc.u_bin, vc.g_bin, "k.", ms=4)
-    axl.semilogx(ul, virgin_model(ul, k, d), "C0-")
+    axl.semilogx(vc.u_bin / kx, vc.g_bin / kf, "k.", ms=4)
+    axl.semilogx(ul / kx, virgin_model(ul, k, d) / kf, "C0-")
     for di in d:
-        axl.axvline(di, color="r", lw=0.6, ls=":")
+        axl.axvline(di / kx, color="r", lw=0.6, ls=":")
     axl.set_xlabel(f"displacement [{xu}] (log)")
     axl.set_ylabel(f"force [{pu}]")
     for a in (ax, axl):
         a.grid(True, alpha=0.3)
     figs = {"presliding_virgin": fig}
-    model = res.data.get("model")  # in the data's units, like t, x and F
-    if model is not None:
+    if model is not None and "t" in res.data:
         t, x, F = res.data["t"], res.data["x"], res.data["F"]
-        sim = simulate_friction(model, t, x)
+        sim = simulate_friction(model, t, x) + res.data.get("force_offset", 0.0)
         fig2, (a1, a2) = new_figure(2, 1, figsize=(7.0, 7.0))
-        a1.plot(x, F, ",", color="0.5", label="measured")
-        a1.plot(x, sim, "C0-", lw=0.8, label="identified GMS")
+        a1.plot(x / kx, F / kf, ",", color="0.5", label="measured")
+        a1.plot(x / kx, sim / kf, "C0-", lw=0.8, label="identified blocks")
         a1.set_xlabel(f"position [{xu}]")
         a1.set_ylabel(f"force [{pu}]")
         a1.legend(fontsize="small")
         a1.set_title("pre-sliding hysteresis (cf. paper Fig. 6)")
-        a2.plot(t, F - sim, "k-", lw=0.5)
+        a2.plot(t / kt, (F - sim) / kf, "k-", lw=0.5)
         a2.set_xlabel(f"time [{tu}]")
         a2.set_ylabel(f"residual [{pu}]")
         for a in (a1, a2):

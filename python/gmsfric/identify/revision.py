@@ -22,8 +22,9 @@ from .._progress import Progress
 from .._validate import as_array, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
 from ..models import FrictionModel
-from ..system import PID, Controller, Plant, simulate_closed_loop
+from ..system import Controller, Plant, simulate_closed_loop
 from .frf import FRF, estimate_frf
+from .diagnostics import Findings, check_bounds, check_chi2, check_stderr, emit
 from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
 
 
@@ -42,10 +43,10 @@ def combined_frf(
     excitation added to the controller output and the FRF is the joint input-output estimate.
     Returns the FRF and the simulated position.
     """
-    ctrl = controller if controller is not None else PID(kp=0.0)
-    r = simulate_closed_loop(plant, friction, ctrl, np.zeros(drive.size), dt, input_disturbance=drive)
     if controller is None:
+        r = simulate_closed_loop(plant, friction, None, None, dt, feedforward=drive, record=("position",))
         return estimate_frf(1.0 / dt, drive, r.position, nperseg=nperseg), r.position
+    r = simulate_closed_loop(plant, friction, controller, np.zeros(drive.size), dt, input_disturbance=drive, record=("position", "command"))
     return estimate_frf(1.0 / dt, r.command, r.position, excitation=drive, nperseg=nperseg), r.position
 
 
@@ -168,8 +169,20 @@ def revise_plant(
         "friction": type(friction).__name__ if friction is not None else None,
     }
     jac_p = np.eye(4)[:, : cov.shape[0]] * np.array([revised.a, 1.0, 1.0, 1.0])[:, None]
-    return IdentificationResult(
+    findings = Findings()
+    for d in measured.checks.get("findings", []):
+        findings.add(d.code, d.message, d.parameter)
+    check_bounds(findings, "a", float(q[0]), float(lo[0]), float(hi[0]), what=" (log scale: the start was far off)")
+    for j, name in ((1, "b"), (2, "c")):
+        if q[j] <= 1e-9 * max(abs(q0[j]), 1.0):
+            findings.add("at_bound", f"{name} is at its lower bound 0 with the friction in the loop (the friction model may carry "
+                                     f"{'the damping' if name == 'b' else 'the stiffness'} the data show)", name)
+    check_chi2(findings, float(best.fun @ best.fun), dof, what=" of the revised combined model")
+    check_stderr(findings, {k: v for k, v in params.items() if k != "delay" or fit_delay}, skip={k for k, (v, _) in params.items() if v == 0})
+    res = IdentificationResult(
         "revised_plant", params, units, info, covariance=(["a", "b", "c", "delay"], transform_covariance(cov, jac_p)),
         data={"measured": measured, "original_combined": orig_frf, "revised_combined": rev_frf, "original_plant": plant, "sel": sel},
         model_object=revised,
     )
+    emit(res, findings)
+    return res

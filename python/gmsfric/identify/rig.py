@@ -23,7 +23,7 @@ from scipy import signal
 from .._validate import non_negative, positive
 from ..errors import InvalidInputError
 from ..models import FrictionModel, simulate_friction
-from ..system import PID, Cascade, Controller, Plant, simulate_closed_loop
+from ..system import Controller, Plant, simulate_closed_loop
 
 Columns = dict[str, NDArray[np.float64]]
 
@@ -59,8 +59,9 @@ class VirtualRig:
         Mechanics and drive (eq. 1 with delay and ``force_gain``).
     friction : friction model
         The "true" friction of the rig.
-    controller : PID or Cascade
-        Position controller for the closed-loop experiments.
+    controller : PID, Cascade or None
+        Position controller for the closed-loop experiments (``None``: an open-loop rig, for the
+        sinusoid and open-loop noise tests only).
     dt : float
         Sample / control period (s).
     encoder : float
@@ -75,7 +76,7 @@ class VirtualRig:
 
     plant: Plant
     friction: FrictionModel | None
-    controller: Controller
+    controller: Controller | None
     dt: float = 1e-3
     encoder: float = 0.0
     position_noise: float = 0.0
@@ -127,6 +128,8 @@ class VirtualRig:
         (a plant with a stiffness term needs a growing drive to hold a growing position); the
         axis dwells ``dwell`` s between ramps.  Returns columns ``t, position, force, command, reference, velocity_true``.
         """
+        if self.controller is None:
+            raise InvalidInputError("constant-velocity runs need a position controller: the rig's `controller` is None")
         rng = np.random.default_rng(seed)
         dt = self.dt
         pieces = [np.zeros(int(round(dwell / dt)))]
@@ -200,15 +203,18 @@ class VirtualRig:
         controller output (the reference is 0).  Returns ``t, input`` (drive command),
         ``output`` (measured position) and ``excitation``.
         """
+        if closed_loop and self.controller is None:
+            raise InvalidInputError("a closed-loop noise test needs a position controller: the rig's `controller` is None")
         rng = np.random.default_rng(seed)
         n = int(round(positive("duration", duration) / self.dt))
         e = band_limited_noise(n, self.dt, positive("rms", rms), band, rng)
-        ctrl = self.controller if closed_loop else PID(kp=0.0)
-        r = simulate_closed_loop(
-            self.plant, self.friction, ctrl, np.zeros(n), self.dt, input_disturbance=e,
-            measurement_noise=self.position_noise * rng.standard_normal(n) if self.position_noise > 0 else None,
-            quantization=self.encoder, drive_limit=self.drive_limit,
-        )
+        noise = self.position_noise * rng.standard_normal(n) if self.position_noise > 0 else None
+        if closed_loop:
+            r = simulate_closed_loop(self.plant, self.friction, self.controller, np.zeros(n), self.dt, input_disturbance=e,
+                                     measurement_noise=noise, quantization=self.encoder, drive_limit=self.drive_limit)
+        else:
+            r = simulate_closed_loop(self.plant, self.friction, None, None, self.dt, feedforward=e,
+                                     measurement_noise=noise, quantization=self.encoder, drive_limit=self.drive_limit)
         return {"t": r.t, "input": r.command, "output": r.measured, "excitation": e, "position_true": r.position}
 
 

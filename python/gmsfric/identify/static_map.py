@@ -9,6 +9,7 @@ constant-velocity plateaus, which finds the plateaus itself (:func:`find_plateau
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,9 +21,11 @@ from .. import curves
 from .. import units as _units
 from .._progress import Progress
 from .._validate import as_array, positive, same_length
-from ..errors import IdentificationError
+from ..errors import FitWarning, IdentificationError, InvalidInputError
 from ..models import StaticFriction, Stribeck
+from .diagnostics import Findings, check_bounds, check_chi2, check_stderr, emit
 from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
+from .sampling import estimate_resolution, quantum, white_noise_level
 
 NAMES = ("fc", "fs", "vs", "sigma", "delta")
 MIN_POINTS = 6
@@ -57,13 +60,15 @@ def _to_params(q: NDArray[np.float64]) -> tuple[float, float, float, float, floa
     return float(q[0]), float(q[1]), float(np.exp(q[2])), float(q[3]), float(np.exp(q[4]))
 
 
-def _one_sided_fit(speed: NDArray[np.float64], force: NDArray[np.float64], weight: NDArray[np.float64], delta_bounds: tuple[float, float]) -> tuple[NDArray[np.float64], Any]:
-    """Fit ``|F|`` against ``|v|`` (all speeds > 0); multi-start; returns the internal vector and
-    the least_squares result."""
+def _bounds(speed: NDArray[np.float64], delta_bounds: tuple[float, float]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    lo = np.array([0.0, 0.0, np.log(speed.min()) - 6.0, 0.0, np.log(delta_bounds[0])])
+    hi = np.array([np.inf, np.inf, np.log(speed.max()) + 6.0, np.inf, np.log(delta_bounds[1])])
+    return lo, hi
 
-    def resid(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        return (static_map_curve(speed, *_to_params(q)) - force) * weight
 
+def _starts(speed: NDArray[np.float64], force: NDArray[np.float64], delta_bounds: tuple[float, float]) -> list[NDArray[np.float64]]:
+    """Start values: fc and sigma from a line through the faster half, fs from the slowest
+    points, ``vs`` over 6 values spanning the data and ``delta`` in {0.7, 1, 2}."""
     order = np.argsort(speed)
     s_sorted, f_sorted = speed[order], force[order]
     upper = s_sorted >= np.quantile(s_sorted, 0.5)
@@ -75,20 +80,31 @@ def _one_sided_fit(speed: NDArray[np.float64], force: NDArray[np.float64], weigh
     fc0 = max(float(fc0), 1e-12 * max(np.abs(force).max(), 1e-300))
     fs0 = max(float(f_sorted[:max(1, len(f_sorted) // 8)].max()), fc0)
     scale = max(np.abs(force).max(), 1e-300)
-    lo = np.array([0.0, 0.0, np.log(speed.min()) - 6.0, 0.0, np.log(delta_bounds[0])])
-    hi = np.array([np.inf, np.inf, np.log(speed.max()) + 6.0, np.inf, np.log(delta_bounds[1])])
-    best = None
+    out = []
     for vs0 in np.exp(np.linspace(np.log(speed.min()), np.log(speed.max()), 6)):
         for d0 in (0.7, 1.0, 2.0):
-            d0 = float(np.clip(d0, *delta_bounds))
-            q0 = np.array([fc0, fs0 + 1e-3 * scale, np.log(vs0), sig0, np.log(d0)])
-            q0 = np.clip(q0, lo + 1e-9, hi - 1e-9)
-            try:
-                r = least_squares(resid, q0, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=400)
-            except (ValueError, FloatingPointError):  # pragma: no cover
-                continue
-            if best is None or r.cost < best.cost:
-                best = r
+            out.append(np.array([fc0, fs0 + 1e-3 * scale, np.log(vs0), sig0, np.log(float(np.clip(d0, *delta_bounds)))]))
+    return out
+
+
+def _one_sided_fit(speed: NDArray[np.float64], force: NDArray[np.float64], weight: NDArray[np.float64], delta_bounds: tuple[float, float],
+                   starts: list[NDArray[np.float64]] | None = None) -> tuple[NDArray[np.float64], Any]:
+    """Fit ``|F|`` against ``|v|`` (all speeds > 0) from several starts (or the given ones);
+    returns the internal vector and the least_squares result."""
+
+    def resid(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        return (static_map_curve(speed, *_to_params(q)) - force) * weight
+
+    lo, hi = _bounds(speed, delta_bounds)
+    best = None
+    for q0 in starts if starts is not None else _starts(speed, force, delta_bounds):
+        q0 = np.clip(q0, lo + 1e-9, hi - 1e-9)
+        try:
+            r = least_squares(resid, q0, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=400)
+        except (ValueError, FloatingPointError):  # pragma: no cover
+            continue
+        if best is None or r.cost < best.cost:
+            best = r
     if best is None:  # pragma: no cover
         raise IdentificationError("static map fit failed from every start value")
     return best.x, best
@@ -102,10 +118,46 @@ def _external(q: NDArray[np.float64], cov_q: NDArray[np.float64]) -> dict[str, t
     return dict(zip(NAMES, ((fc, se[0]), (fs, se[1]), (vs, se[2]), (sigma, se[3]), (delta, se[4]))))
 
 
-def _fit_side(speed, force, weight, delta_bounds):  # type: ignore[no-untyped-def]
+def _fit_side(speed, force, weight, delta_bounds, known_errors=False):  # type: ignore[no-untyped-def]
+    """Fit and covariance.  With known standard errors of the points (``known_errors``) the
+    covariance is ``(J^T W J)^-1``, scaled up by chi2/dof when the scatter exceeds them but never
+    down (a few points scattering less than their errors say is no reason to trust the fit more);
+    otherwise ``s^2 (J^T J)^-1`` with ``s^2`` from the residuals."""
     q, r = _one_sided_fit(speed, force, weight, delta_bounds)
     cov = covariance_from_jacobian(r.jac, r.fun)
+    if known_errors:
+        dof = max(r.fun.size - r.x.size, 1)
+        s2 = float(r.fun @ r.fun) / dof
+        cov = cov / max(s2, 1e-300) * max(s2, 1.0)
     return q, _external(q, cov), r
+
+
+def _diagnose(findings: Findings, q: NDArray[np.float64], params: dict[str, tuple[float, float]], speed: NDArray[np.float64],
+              delta_bounds: tuple[float, float], chi2: float | None, dof: int, units: dict[str, str]) -> set[str]:
+    """Findings of a static-map fit (SI values, reported in ``units``); returns the parameters
+    at a bound of zero."""
+    fc, fs, vs, sigma, delta = (params[k][0] for k in NAMES)
+    lo, hi = _bounds(speed, delta_bounds)
+    zero = set()
+    for name, value in (("fc", fc), ("fs", fs), ("sigma", sigma)):
+        if value <= 1e-9 * max(fc, fs, 1e-300) or value == 0.0:
+            zero.add(name)
+            findings.add("at_bound", f"{name} is at its lower bound 0", name)
+    check_bounds(findings, "delta", delta, *delta_bounds, what=" (the Stribeck shape is not determined: vs and fs are unreliable too)")
+    check_bounds(findings, "vs", vs, float(np.exp(lo[2])), float(np.exp(hi[2])), log=True, what=" (far outside the measured speeds)")
+    if fs < fc and "fs" not in zero:
+        findings.add("ordering", f"fs < fc ({fs:.4g} < {fc:.4g} {units['fc']}): friction rising from rest is not a static map eq. 2 "
+                                 "can stand for (wrong force column or units, or no Stribeck drop in the data)", "fs")
+    if vs < speed.min():
+        findings.add("coverage", f"vs = {vs:.3g} {units['vs']} is below the slowest point ({speed.min():.3g} {units['vs']}): the Stribeck drop "
+                                 "is not sampled, so vs, delta and fs are extrapolated", "vs")
+    elif vs > speed.max():
+        findings.add("coverage", f"vs = {vs:.3g} {units['vs']} is above the fastest point ({speed.max():.3g} {units['vs']}): the Coulomb "
+                                 "level is not reached, so fc and sigma are extrapolated", "vs")
+    if chi2 is not None:
+        check_chi2(findings, chi2, dof, what=" of the static map (with the points' standard errors)", low=None)
+    check_stderr(findings, params, skip=zero)
+    return zero
 
 
 @dataclass
@@ -175,6 +227,127 @@ def _split(v: NDArray[np.float64], a: int, b: int, tol_rel: float, min_len: int,
     _split(v, a + j, b, tol_rel, min_len, out)
 
 
+def _moving_segments(v: NDArray[np.float64], used: NDArray[np.int64], n_blocks: int, rel_tol: float) -> list[tuple[int, int, int]]:
+    """Stretches of motion of one sign, split where the velocity changes by more than
+    ``rel_tol``; each with the half-width of its velocity window."""
+    n = v.size
+    sgn = np.sign(v)
+    edges = np.flatnonzero(np.diff(sgn) != 0) + 1
+    bounds = np.concatenate(([0], edges, [n]))
+    segments: list[tuple[int, int, int]] = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if sgn[a] == 0:
+            continue
+        h = int(np.median(used[a:b]))
+        if b - a < 6 * h or b - a < 3 * n_blocks:
+            continue
+        parts: list[tuple[int, int]] = []
+        _split(v, int(a), int(b), rel_tol, max(3 * h, n_blocks), parts)
+        segments.extend((p0, p1, h) for p0, p1 in parts)
+    return segments
+
+
+def _block_stats(t: NDArray[np.float64], x: NDArray[np.float64], f: NDArray[np.float64], edges: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    vel = np.array([(x[e1 - 1] - x[e0]) / (t[e1 - 1] - t[e0]) for e0, e1 in zip(edges[:-1], edges[1:])])
+    force = np.array([f[e0:e1].mean() for e0, e1 in zip(edges[:-1], edges[1:])])
+    return vel, force
+
+
+def _settled_blocks(vel: NDArray[np.float64], force: NDArray[np.float64], noise: float, tol: float, vel_res: float) -> NDArray[np.bool_]:
+    """Sub-blocks of a plateau in steady motion: leading and trailing blocks whose velocity or
+    force is off the rest (the end of an acceleration, the loop settling, the start of the
+    deceleration) are dropped one by one; ``noise`` is the scatter a block mean has anyway."""
+    keep = np.ones(vel.size, dtype=bool)
+
+    def off(j: int) -> bool:
+        rest = keep.copy()
+        rest[j] = False
+        fm = float(np.median(force[rest]))
+        spread = max(1.4826 * float(np.median(np.abs(force[rest] - fm))), noise)
+        vm = float(np.median(vel[rest]))
+        return abs(force[j] - fm) > 4.0 * spread or abs(vel[j] - vm) > tol * abs(vm) + vel_res
+
+    changed = True
+    while changed and keep.sum() > 3:
+        changed = False
+        idx = np.flatnonzero(keep)
+        for j in (idx[0], idx[-1]):
+            if keep.sum() > 3 and off(int(j)):
+                keep[j] = False
+                changed = True
+    return keep
+
+
+def _stick_slip(t: NDArray[np.float64], x: NDArray[np.float64], a: int, b: int, vel: float, resolution: float, quantum_: float, dt: float,
+                tol: float) -> str:
+    """Why the motion on ``[a, b)`` is not steady sliding (empty when it is): standstills (the
+    encoder stops for much longer than quantum / speed), velocity oscillation, a rough path."""
+    if quantum_ > 0:
+        ch = np.flatnonzero(np.diff(x[a:b]) != 0)
+        if ch.size > 2:
+            gaps = np.diff(t[a:b][ch])
+            expected = max(quantum_ / abs(vel), dt)
+            stuck = float(gaps[gaps > 4.0 * expected].sum()) / max(float(t[b - 1] - t[a]), dt)
+            if stuck > 0.2:
+                return f"stick-slip ({stuck:.0%} of the plateau at standstill)"
+    # local velocity over ~8 resolutions scatters far more than quantisation explains
+    hl = max(1, int(np.ceil(8.0 * resolution / (abs(vel) * dt) / 2)))
+    if b - a > 4 * hl:
+        xs = x[a:b]
+        v_loc = (xs[2 * hl :] - xs[: -2 * hl]) / (2 * hl * dt)
+        cv = float(np.std(v_loc)) / abs(vel)
+        expected_cv = resolution / (2 * hl * dt * abs(vel))
+        L = max(10, 4 * hl)
+        nw = (b - a) // L
+        rough = 0.0
+        if nw >= 3:
+            # short-window roughness of the position about its local straight line
+            tw = np.arange(L) - (L - 1) / 2
+            segs = xs[: nw * L].reshape(nw, L)
+            segs = segs - segs.mean(axis=1, keepdims=True)
+            slope = (segs @ tw) / (tw @ tw)
+            rough = float(np.median(np.sqrt(np.mean((segs - slope[:, None] * tw) ** 2, axis=1))))
+        if cv > tol + 2.0 * expected_cv or rough > 3.0 * resolution / np.sqrt(12.0) + 1e-300:
+            return f"velocity oscillation (stick-slip), CV {cv:.2f}"
+    return ""
+
+
+def _examine(t: NDArray[np.float64], x: NDArray[np.float64], f: NDArray[np.float64], a: int, b: int, h: int, *, settle: float, n_blocks: int,
+             tol: float, resolution: float, quantum_: float, force_noise: float, min_travel: float, require_dissipative: bool,
+             dt: float) -> Plateau | None:
+    """One constant-velocity stretch: its transient dropped, judged steady or not; ``None`` when
+    too short to judge."""
+    # the velocity window smears the start and the stop by h samples
+    a2 = a + max(2 * h, int(settle * (b - a)))
+    b2 = b - 2 * h
+    if b2 - a2 < max(n_blocks * 3, 2 * h):
+        return None
+    edges = np.linspace(a2, b2, n_blocks + 1).astype(int)
+    vel_b, f_b = _block_stats(t, x, f, edges)
+    block_len = float(np.median(np.diff(edges)))
+    vel_res = 2.0 * resolution / max(float(t[edges[1] - 1] - t[edges[0]]), dt)
+    keep = _settled_blocks(vel_b, f_b, force_noise / np.sqrt(block_len), tol, vel_res)
+    ok = np.flatnonzero(keep)
+    a3, b3 = int(edges[ok[0]]), int(edges[ok[-1] + 1])
+    vel = float(np.polyfit(t[a3:b3] - t[a3], x[a3:b3], 1)[0]) if b3 - a3 > 2 else 0.0
+    p = Plateau(a3, b3, vel, float(f_b[keep].mean()), float("nan"), float(keep.mean()))
+    if keep.sum() < max(3, n_blocks // 2) or vel == 0:
+        p.dropped = "unsteady velocity or force (transient or stick-slip)"
+        return p
+    reason = _stick_slip(t, x, a3, b3, vel, resolution, quantum_, dt, tol)
+    if reason:
+        p.dropped = reason
+        return p
+    if abs(x[b3 - 1] - x[a3]) < min_travel:
+        p.dropped = "too short a travel (creep)"
+        return p
+    if require_dissipative and np.sign(p.force) != np.sign(vel):
+        p.dropped = "force does not oppose the motion (pre-sliding)"
+        return p
+    p.force_stderr = float(f_b[keep].std(ddof=1) / np.sqrt(keep.sum()))
+    return p
+
+
 def find_plateaus(
     t: ArrayLike,
     position: ArrayLike,
@@ -185,18 +358,20 @@ def find_plateaus(
     settle: float = 0.25,
     rel_tol: float = 0.15,
     stick_slip_tol: float = 0.3,
-    n_blocks: int = 8,
+    n_blocks: int = 16,
     min_travel: float | None = None,
     require_dissipative: bool = True,
+    min_duration: float = 0.2,
 ) -> PlateauSearch:
     """Constant-velocity plateaus of a raw run, transients and stick-slip stretches dropped.
 
-    Velocity is estimated by centred differences whose width adapts to the speed: the smallest
-    that spans ``counts`` position resolutions (encoder quantum or noise level), so slow and fast
-    plateaus are resolved alike.  Moving stretches of one sign are split where the velocity
-    changes by more than ``rel_tol`` (binary segmentation), the first ``settle`` fraction of each
-    is dropped as transient, and sub-blocks whose velocity is off by more than ``stick_slip_tol``
-    are dropped as stick-slip.
+    Stages: the velocity by centred differences whose width adapts to the speed (the smallest
+    spanning ``counts`` position resolutions, so slow and fast plateaus are resolved alike);
+    stretches of one sign split where the velocity changes by more than ``rel_tol``; in each, the
+    first ``settle`` fraction dropped, then leading and trailing sub-blocks whose force or
+    velocity is off the rest (acceleration, settling, deceleration); stick-slip (standstills,
+    velocity oscillation), creep and non-dissipative stretches rejected; finally plateaus much
+    shorter than the others (creep while the loop settles).
 
     Parameters
     ----------
@@ -213,9 +388,9 @@ def find_plateaus(
         Relative velocity change that starts a new plateau.
     stick_slip_tol : float
         Sub-blocks whose velocity deviates from the plateau's by more than this fraction are
-        dropped (stick-slip, transients); plateaus keeping less than half are rejected.
+        unsteady; plateaus keeping less than half of their blocks are rejected.
     n_blocks : int
-        Sub-blocks per plateau, also used for the standard error of the mean force
+        Sub-blocks per plateau (>= 4), also used for the standard error of the mean force
         (``std(block means) / sqrt(n)``).
     min_travel : float, optional
         Shortest distance travelled on a kept plateau; shorter ones (creep while settling) are
@@ -223,6 +398,8 @@ def find_plateaus(
     require_dissipative : bool
         Reject plateaus whose mean force does not have the sign of the velocity (pre-sliding or
         creep, not steady sliding).
+    min_duration : float
+        Plateaus shorter than this fraction of the median kept plateau are rejected.
 
     Returns
     -------
@@ -234,105 +411,33 @@ def find_plateaus(
     f = as_array("force", force)
     same_length("position", x, "time", t.size)
     same_length("force", f, "time", t.size)
-    n = t.size
+    if isinstance(n_blocks, bool) or int(n_blocks) != n_blocks or n_blocks < 4:
+        raise InvalidInputError(f"`n_blocks` must be an integer >= 4, got {n_blocks!r}")
     dt = float(np.median(np.diff(t)))
     if max_window is None:
         max_window = (t[-1] - t[0]) / 50.0
     max_h = max(2, int(round(positive("max_window", max_window) / dt)))
-    dx = np.abs(np.diff(x))
-    quantum = float(dx[dx > 0].min()) if np.any(dx > 0) else 0.0
-    # white position noise: robust scatter of second differences / sqrt(6)
-    noise = 1.4826 * float(np.median(np.abs(np.diff(x, 2)))) / np.sqrt(6.0)
-    resolution = max(quantum, noise, 1e-12 * max(np.abs(x).max(), 1e-300))
+    resolution = estimate_resolution(x)
+    q = quantum(x)
     if min_travel is None:
         min_travel = 2.0 * counts * resolution
     v, used = _adaptive_velocity(t, x, resolution, counts, max_h)
-    sgn = np.sign(v)
-    runs: list[tuple[int, int]] = []
-    k = 0
-    while k < n:
-        if sgn[k] == 0:
-            k += 1
-            continue
-        j = k
-        while j < n and sgn[j] == sgn[k]:
-            j += 1
-        h_run = int(np.median(used[k:j]))
-        if j - k >= 6 * h_run and j - k >= 3 * n_blocks:
-            runs.append((k, j))
-        k = j
-    segments: list[tuple[int, int, int]] = []
-    for a, b in runs:
-        h_run = int(np.median(used[a:b]))
-        parts: list[tuple[int, int]] = []
-        _split(v, a, b, rel_tol, max(3 * h_run, n_blocks), parts)
-        segments.extend((p0, p1, h_run) for p0, p1 in parts)
     out = PlateauSearch(window=float(np.median(used[used > 0]) * dt) if np.any(used > 0) else 0.0)
-    for a, b, h in segments:
-        a2 = a + max(2 * h, int(settle * (b - a)))
-        b2 = b - h
-        if b2 - a2 < max(n_blocks * 3, 2 * h):
+    force_noise = white_noise_level(f)
+    for a, b, h in _moving_segments(v, used, int(n_blocks), rel_tol):
+        p = _examine(t, x, f, a, b, h, settle=settle, n_blocks=int(n_blocks), tol=stick_slip_tol, resolution=resolution, quantum_=q,
+                     force_noise=force_noise, min_travel=min_travel, require_dissipative=require_dissipative, dt=dt)
+        if p is None:
             continue
-        edges = np.linspace(a2, b2, n_blocks + 1).astype(int)
-        vel_b = np.array([(x[e1 - 1] - x[e0]) / (t[e1 - 1] - t[e0]) for e0, e1 in zip(edges[:-1], edges[1:])])
-        f_b = np.array([f[e0:e1].mean() for e0, e1 in zip(edges[:-1], edges[1:])])
-        vel = float(np.polyfit(t[a2:b2] - t[a2], x[a2:b2], 1)[0])
-        block_res = 2.0 * resolution / max(t[edges[1] - 1] - t[edges[0]], dt)
-        ok = np.abs(vel_b - vel) <= stick_slip_tol * abs(vel) + block_res
-        p = Plateau(int(a2), int(b2), vel, float(f_b[ok].mean()) if ok.any() else float("nan"), float("nan"), float(ok.mean()))
-        if ok.sum() < max(2, n_blocks // 2 + 1) or vel == 0:
-            p.dropped = "stick-slip or unsteady velocity"
+        (out.rejected if p.dropped else out.plateaus).append(p)
+    if out.plateaus:
+        durations = np.array([t[p.stop - 1] - t[p.start] for p in out.plateaus])
+        short = durations < min_duration * float(np.median(durations))
+        for p in [p for p, sh in zip(out.plateaus, short) if sh]:
+            p.dropped = "much shorter than the other plateaus (creep while settling)"
             out.rejected.append(p)
-            continue
-        if quantum > 0:
-            # stick-slip shows as standstills: encoder counts stop changing for much longer than
-            # the quantum / speed expected on a steady plateau
-            ch = np.flatnonzero(np.diff(x[a2:b2]) != 0)
-            if ch.size > 2:
-                gaps = np.diff(t[a2:b2][ch])
-                expected = max(quantum / abs(vel), dt)
-                stuck = float(gaps[gaps > 4.0 * expected].sum()) / max(float(t[b2 - 1] - t[a2]), dt)
-                if stuck > 0.2:
-                    p.dropped = f"stick-slip ({stuck:.0%} of the plateau at standstill)"
-                    out.rejected.append(p)
-                    continue
-        # velocity oscillation (stick-slip without full stops, limit cycles): local velocity over
-        # ~8 resolutions scatters far more than quantisation explains
-        hl = max(1, int(np.ceil(8.0 * resolution / (abs(vel) * dt) / 2)))
-        if b2 - a2 > 4 * hl:
-            xs_ = x[a2:b2]
-            v_loc = (xs_[2 * hl :] - xs_[: -2 * hl]) / (2 * hl * dt)
-            cv = float(np.std(v_loc)) / abs(vel)
-            expected_cv = resolution / (2 * hl * dt * abs(vel))
-            # short-window roughness of the position about its local straight line
-            L = max(10, 4 * hl)
-            nw = (b2 - a2) // L
-            rough = 0.0
-            if nw >= 3:
-                tw = np.arange(L) - (L - 1) / 2
-                segs = xs_[: nw * L].reshape(nw, L)
-                segs = segs - segs.mean(axis=1, keepdims=True)
-                slope = (segs @ tw) / (tw @ tw)
-                rough = float(np.median(np.sqrt(np.mean((segs - slope[:, None] * tw) ** 2, axis=1))))
-            if cv > stick_slip_tol + 2.0 * expected_cv or rough > 3.0 * resolution / np.sqrt(12.0) + 1e-300:
-                p.dropped = f"velocity oscillation (stick-slip), CV {cv:.2f}"
-                out.rejected.append(p)
-                continue
-        if abs(x[b2 - 1] - x[a2]) < min_travel:
-            p.dropped = "too short a travel (creep)"
-            out.rejected.append(p)
-            continue
-        if require_dissipative and np.sign(p.force) != np.sign(vel):
-            p.dropped = "force does not oppose the motion (pre-sliding)"
-            out.rejected.append(p)
-            continue
-        if not ok.all():
-            w = np.diff(edges)[ok]
-            p.velocity = float(np.sum(vel_b[ok] * w) / np.sum(w))
-        p.force_stderr = float(f_b[ok].std(ddof=1) / np.sqrt(ok.sum()))
-        out.plateaus.append(p)
+        out.plateaus = [p for p, sh in zip(out.plateaus, short) if not sh]
     return out
-
 
 def fit_static_map(
     velocity: ArrayLike,
@@ -353,26 +458,26 @@ def fit_static_map(
     multi-start over ``vs`` and ``delta``), standard errors from the Jacobian
     (``s^2 (J^T J)^-1``, ``s^2`` from the residuals).  Both directions share the parameters
     (``F(-v) = -F(v)``); with ``per_direction`` each direction is also fitted on its own and
-    reported under ``info["directions"]``.
+    reported under ``info["directions"]``.  The points are converted to SI before the fit.
 
     Parameters
     ----------
     velocity, force : array_like
-        Steady points, both signs of velocity allowed; units are the data's own.
+        Steady points, both signs of velocity allowed, in ``velocity_unit`` and ``force_unit``.
     force_stderr : array_like, optional
-        Standard error of each point (weights ``1/se``).
+        Standard error of each point (weights ``1/se``; then chi2/dof is checked).
     per_direction : bool
         Also fit ``v > 0`` and ``v < 0`` separately.
     bootstrap : int
         Number of bootstrap resamples (cases) for a second, distribution-free standard error,
-        reported as ``info["bootstrap_stderr"]``.
+        reported as ``info["bootstrap_stderr"]``; each draw starts from the fit.
     delta_bounds : (float, float)
         Bounds on the shape exponent.
     seed : int, optional
         Seed of the bootstrap.
     velocity_unit, force_unit : str
         Units of the data (any :mod:`gmsfric.units` reads; a rotary axis gives ``rad/s`` and
-        ``N m``).  The parameters are reported in them; ``model_object`` is converted to SI.
+        ``N m``).  The parameters are reported in them; ``model_object`` is in SI.
 
     Returns
     -------
@@ -382,66 +487,102 @@ def fit_static_map(
 
     Raises
     ------
+    InvalidInputError
+        Bad arguments (before any work).
     UnitError
         ``velocity_unit`` or ``force_unit`` unknown or not of their quantity (before any work).
+    IdentificationError
+        Too few points or distinct speeds.
     """
     units = static_map_units(velocity_unit, force_unit)
-    v = as_array("velocity", velocity)
-    F = as_array("force", force)
-    same_length("force", F, "velocity", v.size)
+    v_u = as_array("velocity", velocity)
+    F_u = as_array("force", force)
+    same_length("force", F_u, "velocity", v_u.size)
+    if isinstance(bootstrap, bool) or int(bootstrap) != bootstrap or bootstrap < 0:
+        raise InvalidInputError(f"`bootstrap` must be an integer >= 0, got {bootstrap!r}")
+    if not (0 < delta_bounds[0] < delta_bounds[1]):
+        raise InvalidInputError(f"`delta_bounds` must be (low, high) with 0 < low < high, got {delta_bounds!r}")
+    kv = _units.factor(velocity_unit, "velocity", name="velocity_unit")
+    kf = _units.factor(force_unit, "force", name="force_unit")
     if force_stderr is None:
-        se = np.ones_like(v)
+        se_u = np.ones_like(v_u)
     else:
-        se = as_array("force_stderr", force_stderr)
-        same_length("force_stderr", se, "velocity", v.size)
-        pos = se[se > 0]
+        se_u = as_array("force_stderr", force_stderr)
+        same_length("force_stderr", se_u, "velocity", v_u.size)
+        pos = se_u[se_u > 0]
         floor = 1e-3 * float(np.median(pos)) if pos.size else 1.0
-        se = np.maximum(se, floor)
-    keep = v != 0
-    v, F, se = v[keep], F[keep], se[keep]
-    if v.size < MIN_POINTS:
-        raise IdentificationError(f"too few constant-velocity points with non-zero velocity: {v.size}, need at least {MIN_POINTS}")
-    if np.unique(np.round(np.abs(v), 12)).size < 4:
-        raise IdentificationError(f"need at least 4 distinct speeds to fit 5 parameters, got {np.unique(np.abs(v)).size}")
+        se_u = np.maximum(se_u, floor)
+    keep = v_u != 0
+    v_u, F_u, se_u = v_u[keep], F_u[keep], se_u[keep]
+    if v_u.size < MIN_POINTS:
+        raise IdentificationError(f"too few constant-velocity points with non-zero velocity: {v_u.size}, need at least {MIN_POINTS}")
+    if np.unique(np.round(np.abs(v_u) / np.abs(v_u).max(), 12)).size < 4:
+        raise IdentificationError(f"need at least 4 distinct speeds to fit 5 parameters, got {np.unique(np.abs(v_u)).size}")
+    # the fit runs in SI (scale-free: logs of vs and delta, relative weights)
+    v, F, se = v_u * kv, F_u * kf, se_u * (kf if force_stderr is not None else 1.0)
     speed, mag, w = np.abs(v), np.sign(v) * F, 1.0 / se
-    q, params, r = _fit_side(speed, mag, w, delta_bounds)
-    # covariance of (fc, fs, vs, sigma, delta) from that of (fc, fs, log vs, sigma, log delta)
+    known = force_stderr is not None
+    q, params_si, r = _fit_side(speed, mag, w, delta_bounds, known)
     fc_, fs_, vs_, sig_, de_ = _to_params(q)
-    cov = transform_covariance(covariance_from_jacobian(r.jac, r.fun), np.diag([1.0, 1.0, vs_, 1.0, de_]))
+    cov_q = covariance_from_jacobian(r.jac, r.fun)
+    if known:
+        s2 = float(r.fun @ r.fun) / max(r.fun.size - r.x.size, 1)
+        cov_q = cov_q / max(s2, 1e-300) * max(s2, 1.0)
+    # covariance of (fc, fs, vs, sigma, delta) from that of (fc, fs, log vs, sigma, log delta)
+    cov_si = transform_covariance(cov_q, np.diag([1.0, 1.0, vs_, 1.0, de_]))
+    to_user = {"fc": 1 / kf, "fs": 1 / kf, "vs": 1 / kv, "sigma": kv / kf, "delta": 1.0}
+    params = {k: (val * to_user[k], e * to_user[k]) for k, (val, e) in params_si.items()}
     info: dict[str, Any] = {
         "n_points": int(v.size),
-        "rms_residual": float(np.sqrt(np.mean((static_map_curve(v, *[params[k][0] for k in NAMES]) - F) ** 2))),
+        "rms_residual": float(np.sqrt(np.mean((static_map_curve(v, fc_, fs_, vs_, sig_, de_) - F) ** 2))) / kf,
     }
+    dof = max(v.size - len(NAMES), 1)
+    chi2 = float(r.fun @ r.fun) if force_stderr is not None else None
+    if chi2 is not None:
+        info["chi2_per_dof"] = chi2 / dof
+    findings = Findings()
+    zero = _diagnose(findings, q, params, speed / kv, delta_bounds, chi2, dof, units)
+    for name in zero:
+        params[name] = (0.0, params[name][1])
     if per_direction:
         dirs = {}
         for name, mask in (("positive", v > 0), ("negative", v < 0)):
             if mask.sum() < MIN_POINTS or np.unique(speed[mask]).size < 4:
                 raise IdentificationError(f"per-direction fit: only {int(mask.sum())} points with {name} velocity, need at least {MIN_POINTS} at 4 distinct speeds")
-            _, p_dir, _ = _fit_side(speed[mask], mag[mask], w[mask], delta_bounds)
-            dirs[name] = {k: {"value": val, "stderr": s} for k, (val, s) in p_dir.items()}
+            _, p_dir, _ = _fit_side(speed[mask], mag[mask], w[mask], delta_bounds, known)
+            dirs[name] = {k: {"value": val * to_user[k], "stderr": e * to_user[k]} for k, (val, e) in p_dir.items()}
         info["directions"] = dirs
     if bootstrap > 0:
-        rng = np.random.default_rng(seed)
-        draws = []
-        with Progress("static map bootstrap", total=bootstrap, enabled=progress) as prog:
-            for _ in range(int(bootstrap)):
-                idx = rng.integers(0, v.size, v.size)
-                if np.unique(speed[idx]).size < 4:
-                    prog.update()
-                    continue
+        draws = _bootstrap(speed, mag, w, q, delta_bounds, int(bootstrap), seed, progress)
+        if len(draws) >= 2:
+            arr = np.array(draws)
+            info["bootstrap_stderr"] = {k: float(sd) * to_user[k] for k, sd in zip(NAMES, arr.std(axis=0, ddof=1))}
+            info["bootstrap_n"] = len(draws)
+    scale = np.array([to_user[k] for k in NAMES])
+    res = IdentificationResult("static_map", params, units, info, data={"velocity": v_u, "force": F_u, "force_stderr": se_u},
+                               model_object=static_friction_si({k: p[0] for k, p in params.items()}, units),
+                               covariance=(list(NAMES), cov_si * np.outer(scale, scale)))
+    emit(res, findings)
+    return res
+
+
+def _bootstrap(speed: NDArray[np.float64], force: NDArray[np.float64], weight: NDArray[np.float64], q: NDArray[np.float64],
+               delta_bounds: tuple[float, float], n: int, seed: int | None, progress: bool) -> list[tuple[float, ...]]:
+    """Case-resampling bootstrap, every draw started from the fit (a resample moves the optimum
+    a little: one local fit finds it, the multi-start search is not needed again)."""
+    rng = np.random.default_rng(seed)
+    draws = []
+    with Progress("static map bootstrap", total=n, enabled=progress) as prog:
+        for _ in range(n):
+            idx = rng.integers(0, speed.size, speed.size)
+            if np.unique(speed[idx]).size >= 4:
                 try:
-                    qb, _ = _one_sided_fit(speed[idx], mag[idx], w[idx], delta_bounds)
+                    qb, _ = _one_sided_fit(speed[idx], force[idx], weight[idx], delta_bounds, starts=[q])
                     draws.append(_to_params(qb))
                 except IdentificationError:  # pragma: no cover
                     pass
-                prog.update()
-        if len(draws) >= 2:
-            arr = np.array(draws)
-            info["bootstrap_stderr"] = {k: float(s) for k, s in zip(NAMES, arr.std(axis=0, ddof=1))}
-            info["bootstrap_n"] = len(draws)
-    res = IdentificationResult("static_map", params, units, info, data={"velocity": v, "force": F, "force_stderr": se},
-                               model_object=static_friction_si({k: p[0] for k, p in params.items()}, units), covariance=(list(NAMES), cov))
-    return res
+            prog.update()
+    return draws
 
 
 def fit_static_map_from_run(
@@ -452,7 +593,9 @@ def fit_static_map_from_run(
     min_plateaus: int = MIN_POINTS,
     per_direction: bool = False,
     bootstrap: int = 0,
-    velocity_unit: str = "m/s",
+    position_unit: str | None = None,
+    time_unit: str = "s",
+    velocity_unit: str | None = None,
     force_unit: str = "N",
     progress: bool = True,
     **plateau_options: Any,
@@ -465,30 +608,65 @@ def fit_static_map_from_run(
         Raw closed-loop record through constant-velocity plateaus in both directions.
     min_plateaus : int
         Fewer usable plateaus raise :class:`~gmsfric.errors.IdentificationError`.
-    per_direction, bootstrap, velocity_unit, force_unit, progress
+    per_direction, bootstrap, force_unit, progress
         As in :func:`fit_static_map`.
+    position_unit, time_unit : str
+        Units of the position and time columns (converted to SI before anything else).
+    velocity_unit : str, optional
+        Unit the velocities are reported in; default ``position_unit/time_unit``.  Without
+        ``position_unit`` it also states the run's velocity unit (``mm/s`` for a run in mm and s).
     **plateau_options
-        Passed to :func:`find_plateaus` (``window``, ``min_speed``, ``settle``, ...).
+        Passed to :func:`find_plateaus` (``counts``, ``settle``, ``rel_tol``, ...).
 
     Returns
     -------
     IdentificationResult
-        As :func:`fit_static_map`, with ``info["plateaus"]`` and the rejected ones.
+        As :func:`fit_static_map`, with ``info["plateaus"]`` (in the reported units) and the
+        number rejected.
     """
+    if position_unit is not None:
+        rotary = _units.is_rotary(position_unit, "position", name="position_unit")
+        _units.check(time_unit, "time", name="time_unit")
+        run_velocity = _units.ratio(position_unit, time_unit)
+        velocity_unit = velocity_unit or run_velocity
+        if _units.is_rotary(velocity_unit, "velocity", name="velocity_unit") != rotary:
+            raise _units.UnitError(f"`velocity_unit` {velocity_unit!r} and `position_unit` {position_unit!r} are of different axes (linear/rotary)")
+        kx = _units.factor(position_unit, "position", name="position_unit")
+        kt = _units.factor(time_unit, "time", name="time_unit")
+    else:
+        velocity_unit = velocity_unit or "m/s"
+        # the run's own velocity unit carries both: positions scaled by it, time kept
+        kx, kt = _units.factor(velocity_unit, "velocity", name="velocity_unit"), 1.0
     static_map_units(velocity_unit, force_unit)
-    t = as_array("time", t, min_len=10)
-    search = find_plateaus(t, position, force, **plateau_options)
+    kv_report = _units.factor(velocity_unit, "velocity", name="velocity_unit")
+    kf = _units.factor(force_unit, "force", name="force_unit")
+    t_u = as_array("time", t, min_len=10)
+    x_u = as_array("position", position)
+    F_u = as_array("force", force)
+    same_length("position", x_u, "time", t_u.size)
+    same_length("force", F_u, "time", t_u.size)
+    # SI once: the plateau search and the fit see SI numbers only
+    t_si, x_si, F_si = t_u * kt, x_u * kx, F_u * kf
+    search = find_plateaus(t_si, x_si, F_si, **plateau_options)
     pl = search.plateaus
     if len(pl) < min_plateaus:
         raise IdentificationError(
             f"too few constant-velocity plateaus: found {len(pl)} usable ({len(search.rejected)} rejected as unsteady), need at least {min_plateaus}"
         )
-    v = np.array([p.velocity for p in pl])
-    F = np.array([p.force for p in pl])
-    se = np.array([p.force_stderr for p in pl])
-    res = fit_static_map(v, F, force_stderr=se, per_direction=per_direction, bootstrap=bootstrap, velocity_unit=velocity_unit, force_unit=force_unit, progress=progress)
+    v = np.array([p.velocity for p in pl]) / kv_report
+    F = np.array([p.force for p in pl]) / kf
+    se = np.array([p.force_stderr for p in pl]) / kf
+    res = fit_static_map(v, F, force_stderr=se, per_direction=per_direction, bootstrap=bootstrap, velocity_unit=velocity_unit, force_unit=force_unit,
+                         progress=progress)
     res.info["n_plateaus"] = len(pl)
     res.info["n_rejected"] = len(search.rejected)
-    res.info["plateaus"] = [{"t_start": float(t[p.start]), "t_stop": float(t[p.stop - 1]), "velocity": p.velocity, "force": p.force, "force_stderr": p.force_stderr} for p in pl]
-    res.data.update(t=t, position=np.asarray(position, float), raw_force=np.asarray(force, float), plateaus=pl, rejected=search.rejected)
+    res.info["plateaus"] = [{"t_start": float(t_u[p.start]), "t_stop": float(t_u[p.stop - 1]), "velocity": p.velocity / kv_report, "force": p.force / kf,
+                             "force_stderr": p.force_stderr / kf} for p in pl]
+    if len(search.rejected) > 2 * len(pl):
+        reasons = sorted({p.dropped.split(",")[0].split(" (")[0] for p in search.rejected})
+        extra = {"code": "data", "parameter": None,
+                 "message": f"{len(search.rejected)} of {len(search.rejected) + len(pl)} constant-velocity stretches were rejected ({'; '.join(reasons)})"}
+        res.diagnostics.append(extra)
+        warnings.warn(f"static_map: {extra['message']}", FitWarning, stacklevel=2)
+    res.data.update(t=t_u, position=x_u, raw_force=F_u, plateaus=pl, rejected=search.rejected, to_user={"time": 1.0 / kt, "force": 1.0 / kf})
     return res
