@@ -7,7 +7,7 @@ effects of real data, and the file format the runs are written in (names, units,
 command with a gain).  Groups:
 
 =========  ======================================================================================
-single     one catalogue effect at graded strengths (8 effects x 4 grades x 4 rigs) and ``offset``
+single     one catalogue effect at graded strengths (8 effects x 4 grades x 4-5 rigs) and ``offset``
            with the rigid baseline (``--baseline rigid``)
 pair       two catalogue effects at medium to strong grades (the issue's combinations included)
 outside    effects outside the catalogue: v|v| drag, backlash, a force ripple in time, a square wave
@@ -32,6 +32,8 @@ EFFECTS = (
     "position_dependent_force", "input_delay", "friction_drift", "compliance",
 )
 CATALOGUE = EFFECTS + ("offset",)
+#: Effects detectable in fewer rigs at a grade: one more rig per grade.
+SCARCE = {"asymmetric_friction", "stribeck", "friction_drift", "input_delay"}
 #: Effects the core simulator can plant in feedback.
 CORE_EFFECTS = {"stribeck", "presliding_hysteresis", "input_delay", "offset", "ripple", "square"}
 
@@ -58,7 +60,9 @@ def random_rig(rng: Rng, sim: str, axis: str | None = None, robot: bool = False)
         travel, vmax = rng.uniform(0.05, 0.4), rng.uniform(0.05, 0.3)
         quant = float(_pick(rng, [0.05e-6, 0.1e-6, 0.5e-6, 1e-6, 2e-6]))
     else:
-        M, Fc, Fv = _logu(rng, 0.005, 2.0), _logu(rng, 0.2, 15.0), _logu(rng, 0.05, 5.0)
+        # friction tied to the inertia (break-away decelerates the joint at 5-200 rad/s^2)
+        M, Fv = _logu(rng, 0.005, 2.0), _logu(rng, 0.05, 5.0)
+        Fc = float(np.clip(M * _logu(rng, 5.0, 200.0), 0.05, 20.0))
         travel, vmax = rng.uniform(0.8, 3.0), rng.uniform(0.5, 2.5)
         quant = 2 * math.pi / 2 ** int(_pick(rng, [15, 16, 17, 18, 20]))
     if robot:
@@ -187,13 +191,13 @@ def trajectories(rng: Rng, rig: dict[str, Any], robot: bool = False) -> dict[str
 
 #: Relative strength per grade 0..3 (the scale each effect's amplitude is relative to is below).
 GRADES = {
-    "asymmetric_friction": (0.04, 0.1, 0.2, 0.4),          # dFv / Fv
-    "stribeck": (0.08, 0.2, 0.45, 1.0),                    # (Fs - Fc) / Fc
-    "presliding_hysteresis": (0.5, 2.0, 8.0, 30.0),        # break displacement / encoder step
+    "asymmetric_friction": (0.05, 0.15, 0.35, 0.7),        # dFv / Fv
+    "stribeck": (0.1, 0.25, 0.6, 1.2),                     # (Fs - Fc) / Fc
+    "presliding_hysteresis": (0.1, 0.5, 3.0, 20.0),        # break displacement / encoder step
     "position_dependent_friction": (0.04, 0.1, 0.25, 0.6),  # friction change / Fc
     "position_dependent_force": (0.03, 0.1, 0.3, 1.0),     # force amplitude / Fc
-    "input_delay": (0.25, 0.6, 1.5, 4.0),                  # delay / log period (capped at 8 ms)
-    "friction_drift": (0.04, 0.12, 0.3, 0.6),              # friction change over the run / Fc
+    "input_delay": (0.2, 0.6, 1.5, 4.0),                   # delay (ms)
+    "friction_drift": (0.05, 0.15, 0.35, 0.7),             # friction change over the run / Fc
     "compliance": (0.03, 0.1, 0.3, 0.8),                   # load mass / motor mass
     "offset": (0.02, 0.06, 0.2, 0.6),                      # constant force / Fc
 }
@@ -241,8 +245,7 @@ def effect(name: str, grade: int, rig: dict[str, Any], rng: Rng, duration: float
             e["shape"] = make_shape(grav=(-A, rng.uniform(-0.5, 0.5)))
         e["form"] = form
     elif name == "input_delay":
-        T_log = rig["log_every"] / rig["f_ctrl"] if rig.get("jitter") != "robot" else 0.01
-        e["tau"] = float(min(s * T_log, 8e-3))
+        e["tau"] = float(min(s * 1e-3, 6e-3))
     elif name == "friction_drift":
         kind = int(rng.random() < 0.3)
         e.update(kind=kind, dF=s * Fc, T=duration if kind == 1 else duration * rng.uniform(0.12, 0.4))
@@ -310,6 +313,8 @@ def plant(case: dict[str, Any], rng: Rng) -> None:
         c = contact(rig, rng, model, delta)
         rig["contact"] = c
         pre.update({k: v for k, v in c.items()})
+    elif "stribeck" in names and rig["contact"]["model"] == "maxwell":
+        rig["contact"] = stiff_contact(rig, rng, _pick(rng, ["static", "lugre", "gms"]))  # Maxwell-slip has no Stribeck curve
     if rig["contact"]["model"] != "karnopp":
         for e in case["effects"]:
             e.pop("dFc", None)  # a Coulomb asymmetry needs the Karnopp contact
@@ -361,8 +366,9 @@ def emps_cases(rng: Rng, start: int = 0) -> list[dict[str, Any]]:
     """Effects planted on the real EMPS force ``gtau * vir`` (travel 0-0.25 m, |v| <= 0.125 m/s)."""
     L = 0.246
     specs: list[dict[str, Any]] = []
-    for dF, vs, kind, delta in [(2, 0.005, 0, 1.0), (4, 0.01, 0, 2.0), (6, 0.003, 1, 2.0), (8, 0.02, 0, 1.0),
-                                (10, 0.008, 0, 2.0), (12, 0.005, 0, 2.0), (16, 0.004, 0, 1.0), (20, 0.01, 1, 2.0)]:
+    # (10 N, 10 mm/s, Gaussian) is the issue's "strong low-speed hump" (4.03 -> 4.34 % estimation error)
+    for dF, vs, kind, delta in [(4, 0.01, 0, 2.0), (8, 0.02, 0, 2.0), (10, 0.01, 0, 2.0), (14, 0.005, 0, 2.0),
+                                (16, 0.01, 1, 2.0), (20, 0.02, 0, 1.0), (24, 0.01, 0, 2.0), (30, 0.005, 0, 1.0)]:
         specs.append({"name": "stribeck", "dF": float(dF), "vs": vs, "kind": kind, "delta": delta})
     for A, p in [(0.5, 0.008), (1.0, 0.016), (2.0, 0.04), (4.0, 0.004)]:
         specs.append({"name": "position_dependent_force", "form": "cogging", "shape": make_shape(sines=[(A, p, rng.uniform(0, 2 * math.pi))])})
@@ -420,7 +426,7 @@ def make_cases(seed: int = 2024, emps: bool = True) -> list[dict[str, Any]]:
     i = 0
     for name in EFFECTS:
         for grade in range(4):
-            for _ in range(4):
+            for _ in range(5 if name in SCARCE else 4):
                 cases.append(make_case("single", i, rng, [(name, grade)]))
                 i += 1
     for grade in range(4):
@@ -453,30 +459,39 @@ def make_cases(seed: int = 2024, emps: bool = True) -> list[dict[str, Any]]:
     return cases
 
 
+#: The CI subset: (planted effects, case options, rng seed).  The seeds were picked, by looking at
+#: the ground truth only (never at the loop), so that every planted effect is detectable with a
+#: margin (gain >= 0.25 with and without standstill rows) and the clean runs are clean (held-out
+#: baseline error < 6 %, contact pre-sliding invisible).  A change to the generator changes them.
+CI_PLAN: list[tuple[list[tuple[str, int]], dict[str, Any], int]] = [
+    ([], {"sim": "own", "axis": "linear"}, 0),
+    ([], {"sim": "core", "axis": "rotary"}, 1),
+    ([("stribeck", 3)], {"sim": "own", "axis": "linear"}, 1),
+    ([("position_dependent_force", 3)], {"sim": "own", "axis": "rotary"}, 0),
+    ([("asymmetric_friction", 3)], {"sim": "own", "axis": "linear"}, 3),
+    ([("presliding_hysteresis", 3)], {"sim": "core", "axis": "linear"}, 0),
+    ([("input_delay", 3)], {"sim": "core", "axis": "linear"}, 0),
+    ([("compliance", 3)], {"sim": "own", "axis": "linear"}, 0),
+    ([("friction_drift", 3)], {"sim": "own", "axis": "linear"}, 0),
+    ([("position_dependent_friction", 3)], {"sim": "own", "axis": "rotary", "robot": True}, 2),
+]
+
+
+def ci_case(k: int, seed: int | None = None) -> dict[str, Any]:
+    """CI case ``k`` of :data:`CI_PLAN` (10 s at 1 kHz, or a 20 s jittered robot log)."""
+    effs, kw, s = CI_PLAN[k]
+    rng = np.random.default_rng(1000 * k + (s if seed is None else seed))
+    c = make_case("ci", k, rng, effs, **kw)
+    rig = c["rig"]
+    if not kw.get("robot"):
+        rig.update(f_ctrl=1000, log_every=1, jitter=None)
+        c["duration"] = 10.0
+        plant(c, rng)
+    else:
+        c["duration"] = 20.0
+    return c
+
+
 def ci_cases() -> list[dict[str, Any]]:
-    """Ten fixed small cases (10 s, 1 kHz logs, strong effects, clean runs, one jittered log)."""
-    rng = np.random.default_rng(12)
-    plan: list[tuple[list[tuple[str, int]], dict[str, Any]]] = [
-        ([], {"sim": "own", "axis": "linear"}),
-        ([], {"sim": "core", "axis": "rotary"}),
-        ([("stribeck", 3)], {"sim": "own", "axis": "linear"}),
-        ([("position_dependent_force", 3)], {"sim": "own", "axis": "rotary"}),
-        ([("asymmetric_friction", 3)], {"sim": "own", "axis": "linear"}),
-        ([("presliding_hysteresis", 3)], {"sim": "core", "axis": "linear"}),
-        ([("input_delay", 3)], {"sim": "core", "axis": "linear"}),
-        ([("compliance", 3)], {"sim": "own", "axis": "linear"}),
-        ([("friction_drift", 3)], {"sim": "own", "axis": "linear"}),
-        ([("position_dependent_friction", 3)], {"sim": "own", "axis": "rotary", "robot": True}),
-    ]
-    cases = []
-    for k, (effs, kw) in enumerate(plan):
-        c = make_case("ci", k, rng, effs, **kw)
-        rig = c["rig"]
-        if not kw.get("robot"):
-            rig.update(f_ctrl=1000, log_every=1, jitter=None)
-            plant(c, rng)
-            c["duration"] = 10.0
-        else:
-            c["duration"] = 20.0
-        cases.append(c)
-    return cases
+    """Ten fixed small cases: two clean runs, seven strong single effects, one jittered robot log."""
+    return [ci_case(k) for k in range(len(CI_PLAN))]

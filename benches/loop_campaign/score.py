@@ -34,17 +34,18 @@ def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
     failed = [r for r in results if r["status"] != "ok"]
     recall: dict[str, dict[str, list[int]]] = {}
     for eff in CATALOGUE:
-        row = {"det": [0, 0, 0], "undet": [0, 0, 0]}  # found, completed, failed
+        row = {"det": [0, 0, 0], "undet": [0, 0, 0], "det_moving": [0, 0, 0]}  # found, completed, failed
         for r in results:
             t = r.get("truth", {}).get("effects", {}).get(eff)
             if t is None:
                 continue
-            key = "det" if t["detectable"] else "undet"
-            if r["status"] == "ok":
-                row[key][1] += 1
-                row[key][0] += eff in r["accepted"]
-            else:
-                row[key][2] += 1
+            keys = ["det" if t["detectable"] else "undet"] + (["det_moving"] if t.get("detectable_moving") else [])
+            for key in keys:
+                if r["status"] == "ok":
+                    row[key][1] += 1
+                    row[key][0] += eff in r["accepted"]
+                else:
+                    row[key][2] += 1
         recall[eff] = row
     with_false = [r for r in done if false_effects(r)]
     clean = [r for r in results if not r["planted"] and not r["outside"]]
@@ -122,15 +123,17 @@ def format_report(results: list[dict[str, Any]], summary: dict[str, Any], wall_s
     groups = Counter(r["group"] for r in results)
     out.append("groups: " + ", ".join(f"{g} {n}" for g, n in sorted(groups.items())))
     out.append("")
-    out.append("Recall per catalogue effect (completed runs; failed runs in brackets, counted as misses in 'all')")
-    out.append(f"  {'effect':30s} {'detectable':>16s} {'all det.':>10s} {'undetectable':>16s}")
+    out.append("Recall per catalogue effect (completed runs; [failed runs], counted as misses in 'all det.').")
+    out.append("'det. moving': detectable when standstill rows are left out (information, see truth.py).")
+    out.append(f"  {'effect':30s} {'detectable':>16s} {'all det.':>9s} {'undetectable':>16s} {'det. moving':>16s}")
     for eff, row in s["recall"].items():
         f, n, x = row["det"]
         uf, un, ux = row["undet"]
+        mf, mn, mx = row["det_moving"]
         if n + x + un + ux == 0:
             continue
         all_det = f"{100 * f / (n + x):.0f} %" if n + x else "-"
-        out.append(f"  {eff:30s} {_pct(f, n):>12s} [{x}] {all_det:>8s} {_pct(uf, un):>12s} [{ux}]")
+        out.append(f"  {eff:30s} {_pct(f, n):>12s} [{x}] {all_det:>8s} {_pct(uf, un):>12s} [{ux}] {_pct(mf, mn):>12s} [{mx}]")
     out.append("")
     cols, rows = confusion(results)
     out.append("Confusion matrix: cases of each row in which the column's effect was accepted")

@@ -9,7 +9,10 @@ regressors advanced by the true delay rather than an extra column.
 
 Preprocessing reuses the loop's public API (:class:`gmsfric.loop.Signals`, the EMPS recipe:
 filtering, differences, edges, decimation); the least squares and the error are computed here.
-Every run also carries the sampling hold (half a controller period), which the true model
+A second, informative figure leaves standstill rows out (``gain_moving``,
+``detectable_moving``): at rest a stuck axis carries any holding force up to the break-away level,
+which ``sign(qd)`` (of a filtered, ringing velocity) cannot represent and which can hide or fake an
+effect.  Every run also carries the sampling hold (half a controller period), which the true model
 includes as physics of the rig, never as an effect.  Logs with irregular time stamps are
 linearly resampled onto a uniform grid at their median step.
 """
@@ -118,16 +121,26 @@ def _base_columns(sig: Signals, with_offset: bool) -> list[Array]:
     return cols + ([np.ones_like(sig.q)] if with_offset else [])
 
 
-def errors(se: Signals, sv: Signals, effects: list[dict[str, Any]], shift: float, with_offset: bool) -> tuple[float, float]:
+#: With ``moving=True``, rows slower than this fraction of the estimation run's 99th-percentile
+#: speed are left out of fit and error (standstill: set-valued stiction, holding forces).
+STANDSTILL = 0.01
+
+
+def errors(se: Signals, sv: Signals, effects: list[dict[str, Any]], shift: float, with_offset: bool,
+           moving: bool = False) -> tuple[float, float]:
     """Estimation and held-out relative errors (%) of baseline + effects' true columns."""
     ce = _base_columns(se, with_offset) + [c for e in effects for c in effect_columns(e, se)]
     cv = _base_columns(sv, with_offset) + [c for e in effects for c in effect_columns(e, sv)]
-    Xe, Xv = _rows(ce, se, shift), _rows(cv, sv, shift)
+    Xe, Xv, ye, yv = _rows(ce, se, shift), _rows(cv, sv, shift), se.y, sv.y
+    if moving:
+        v_min = STANDSTILL * np.percentile(np.abs(se.rows["qd"]), 99)
+        me, mv = np.abs(se.rows["qd"]) >= v_min, np.abs(sv.rows["qd"]) >= v_min
+        Xe, ye, Xv, yv = Xe[me], ye[me], Xv[mv], yv[mv]
     scale = np.sqrt((Xe**2).sum(axis=0))
     scale[scale == 0] = 1.0
-    theta = np.linalg.lstsq(Xe / scale, se.y, rcond=None)[0] / scale
+    theta = np.linalg.lstsq(Xe / scale, ye, rcond=None)[0] / scale
     err = lambda X, y: float(100 * np.linalg.norm(y - X @ theta) / np.linalg.norm(y))  # noqa: E731
-    return err(Xe, se.y), err(Xv, sv.y)
+    return err(Xe, ye), err(Xv, yv)
 
 
 def ground_truth(case: dict[str, Any], est: Run, val: Run) -> dict[str, Any]:
@@ -138,26 +151,30 @@ def ground_truth(case: dict[str, Any], est: Run, val: Run) -> dict[str, Any]:
     native = case.get("native", [])
     planted = case["effects"]
 
-    def err(effs: list[dict[str, Any]]) -> tuple[float, float]:
+    def err(effs: list[dict[str, Any]], moving: bool = False) -> tuple[float, float]:
         d = next((e["tau"] for e in effs if e["name"] == "input_delay"), 0.0)
-        return errors(se, sv, native + effs, hold + d, off)
+        return errors(se, sv, native + effs, hold + d, off, moving)
 
-    base = err([])
-    full = err(planted)
+    base, base_m = err([]), err([], True)
+    full, full_m = err(planted), err(planted, True)
     out: dict[str, Any] = {
-        "baseline_err": base, "true_model_err": full, "effects": {},
-        "fs": se.fs, "rows": se.n_rows, "jitter_ratio": uniform(est)[3],
+        "baseline_err": base, "true_model_err": full, "baseline_err_moving": base_m, "true_model_err_moving": full_m,
+        "effects": {}, "fs": se.fs, "rows": se.n_rows, "jitter_ratio": uniform(est)[3],
     }
     for e in planted:
         rest = [x for x in planted if x is not e]
         without = err(rest) if rest else base
+        without_m = err(rest, True) if rest else base_m
         alone = err([e])
         marginal = (without[1] - full[1]) / without[1]
+        marginal_m = (without_m[1] - full_m[1]) / without_m[1]
         out["effects"][e["name"]] = {
             "gain": round(float(marginal), 4),
             "gain_alone": round(float((base[1] - alone[1]) / base[1]), 4),
+            "gain_moving": round(float(marginal_m), 4),
             "est_err_alone": [round(base[0], 3), round(alone[0], 3)],
             "detectable": bool(marginal >= DETECTABLE),
+            "detectable_moving": bool(marginal_m >= DETECTABLE),
         }
     info: dict[str, float] = {}
     for e in case.get("outside", []):
