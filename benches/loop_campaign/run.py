@@ -4,6 +4,8 @@
     python benches/loop_campaign/run.py --subset ci           # the 10 fixed CI cases
     python benches/loop_campaign/run.py --n 40 --only stribeck --out /tmp/lc-strib
     python benches/loop_campaign/run.py --truth-only          # generate data and ground truth only
+    python benches/loop_campaign/run.py --report              # re-print the report of a finished run
+    python benches/loop_campaign/run.py --check-sim           # own integrator vs the core on one axis
 
 Each case: simulate (or plant on EMPS) an estimation and a validation run, write them as CSV or
 .mat in the case's units, compute the ground truth, then call the CLI contract
@@ -35,7 +37,7 @@ if __package__ in (None, ""):  # run as a script: make the package importable
 import numpy as np  # noqa: E402
 
 from .cases import CATALOGUE, ci_cases, make_cases  # noqa: E402
-from .rigs import cli_args, emps_dir, simulate_run, write_run  # noqa: E402
+from .rigs import cli_args, cross_check, emps_dir, simulate_run, write_run  # noqa: E402
 from .score import format_report, summarize  # noqa: E402
 from .truth import ground_truth  # noqa: E402
 
@@ -120,6 +122,36 @@ def run_case(case: dict[str, Any], out: Path, gmsfric: list[str], timeout: float
     return res
 
 
+def run_cases(cases: list[dict[str, Any]], out: Path, *, jobs: int = 2, gmsfric: list[str] | None = None,
+              timeout: float = 600.0, truth_only: bool = False, resume: bool = False,
+              progress: bool = True) -> tuple[list[dict[str, Any]], dict[str, Any], float]:
+    """Run cases ``jobs`` at a time; write ``results.json`` and ``report.txt`` under ``out``.
+
+    Returns the per-case results (sorted by id), the summary of :func:`score.summarize` (empty
+    with ``truth_only``) and the wall time (s).  For a test: ``run_cases(ci_cases(), tmp_path)``.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "cases.json").write_text(json.dumps(cases, indent=1))
+    gms = gmsfric or gmsfric_command()
+    t0 = time.perf_counter()
+    results = []
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("fork")) as pool:
+        futs = [pool.submit(run_case, c, out, gms, timeout, truth_only, resume) for c in cases]
+        for k, fut in enumerate(as_completed(futs), 1):
+            r = fut.result()
+            results.append(r)
+            if progress:
+                mark = "" if r["status"] in ("ok", "truth_only") else f"  [{r['status']}] {r['error']}"
+                print(f"[{k}/{len(cases)}] {r['id']}: {', '.join(r['accepted']) or '-'}{mark}", file=sys.stderr)
+    wall = time.perf_counter() - t0
+    results.sort(key=lambda r: r["id"])
+    summary = {} if truth_only else summarize(results)
+    (out / "results.json").write_text(json.dumps({"wall_s": wall, "summary": summary, "cases": results}, indent=1))
+    if not truth_only:
+        (out / "report.txt").write_text(format_report(results, summary, wall) + "\n")
+    return results, summary, wall
+
+
 def select_cases(args: argparse.Namespace) -> list[dict[str, Any]]:
     cases = ci_cases() if args.subset == "ci" else make_cases(args.seed, emps=not args.no_emps)
     if not args.no_emps and args.subset != "ci" and not (emps_dir() / "DATA_EMPS.mat").exists():
@@ -147,35 +179,32 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--truth-only", action="store_true", help="generate data and ground truth, do not run the loop")
     p.add_argument("--no-emps", action="store_true", help="leave out the EMPS cases")
     p.add_argument("--gmsfric", default=None, help="command running gmsfric (default: the one next to this python)")
+    p.add_argument("--report", action="store_true", help="only print the report of the results already in --out")
+    p.add_argument("--check-sim", action="store_true", help="only compare the campaign's integrator with the core on one axis")
     args = p.parse_args(argv)
+    if args.check_sim:
+        print(json.dumps(cross_check(), indent=1))
+        return 0
+    if args.report:
+        saved = json.loads((args.out / "results.json").read_text())
+        results = saved["cases"]
+        report = format_report(results, summarize(results), saved.get("wall_s"))
+        (args.out / "report.txt").write_text(report + "\n")
+        print(report)
+        return 0
     if args.jobs < 1:
         p.error("--jobs must be >= 1")
     cases = select_cases(args)
     if not cases:
         p.error("no case matches")
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "cases.json").write_text(json.dumps(cases, indent=1))
     gms = args.gmsfric.split() if args.gmsfric else gmsfric_command()
     print(f"{len(cases)} cases -> {args.out} ({args.jobs} at a time, loop: {' '.join(gms)})", file=sys.stderr)
-    t0 = time.perf_counter()
-    results = []
-    with ProcessPoolExecutor(max_workers=args.jobs, mp_context=get_context("fork")) as pool:
-        futs = [pool.submit(run_case, c, args.out, gms, args.timeout, args.truth_only, args.resume) for c in cases]
-        for k, fut in enumerate(as_completed(futs), 1):
-            r = fut.result()
-            results.append(r)
-            mark = "" if r["status"] in ("ok", "truth_only") else f"  [{r['status']}] {r['error']}"
-            print(f"[{k}/{len(cases)}] {r['id']}: {', '.join(r['accepted']) or '-'}{mark}", file=sys.stderr)
-    wall = time.perf_counter() - t0
-    results.sort(key=lambda r: r["id"])
-    summary = summarize([r for r in results if r["status"] != "truth_only"]) if not args.truth_only else {}
-    (args.out / "results.json").write_text(json.dumps({"wall_s": wall, "summary": summary, "cases": results}, indent=1))
+    results, summary, wall = run_cases(cases, args.out, jobs=args.jobs, gmsfric=gms, timeout=args.timeout,
+                                       truth_only=args.truth_only, resume=args.resume)
     if args.truth_only:
         print(truth_table(results))
     else:
-        report = format_report(results, summary, wall)
-        (args.out / "report.txt").write_text(report + "\n")
-        print(report)
+        print((args.out / "report.txt").read_text(), end="")
     return 0
 
 

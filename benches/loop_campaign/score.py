@@ -29,7 +29,8 @@ def _pct(k: int, n: int) -> str:
 
 
 def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
-    """Rates and tables (a JSON-able dict) from the per-case results."""
+    """Rates and tables (a JSON-able dict) from the per-case results (generator errors left out)."""
+    results = [r for r in results if r["status"] != "generator_error"]
     done = [r for r in results if r["status"] == "ok"]
     failed = [r for r in results if r["status"] != "ok"]
     recall: dict[str, dict[str, list[int]]] = {}
@@ -61,6 +62,7 @@ def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
         gcount[1] += 1
     det_rows = [(eff, row["det"]) for eff, row in recall.items() if row["det"][1]]
     min_recall = min((f / n for _, (f, n, _) in det_rows), default=float("nan"))
+    min_recall_moving = min((row["det_moving"][0] / row["det_moving"][1] for row in recall.values() if row["det_moving"][1]), default=float("nan"))
     return {
         "n_cases": len(results), "n_completed": len(done), "n_failed": len(failed),
         "recall": recall,
@@ -71,6 +73,7 @@ def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
         "pairs_both_detectable": [len(both(pairs_det)), sum(r["status"] == "ok" for r in pairs_det), len(pairs_det)],
         "pairs_all": [len(both(pairs)), sum(r["status"] == "ok" for r in pairs), len(pairs)],
         "min_recall_detectable": min_recall,
+        "min_recall_detectable_moving": min_recall_moving,
         "alignment_rate": sum(bool(r.get("alignment")) for r in done) / len(done) if done else float("nan"),
     }
 
@@ -118,6 +121,8 @@ ABBREV = {"asymmetric_friction": "asym", "stribeck": "strib", "presliding_hyster
 def format_report(results: list[dict[str, Any]], summary: dict[str, Any], wall_s: float | None = None) -> str:
     """The printed report: recall, confusion matrix, false effects per case, rates, failures, targets."""
     s = summary
+    gen_errors = [r for r in results if r["status"] == "generator_error"]
+    results = [r for r in results if r["status"] != "generator_error"]
     out = [f"gmsfric loop campaign: {s['n_cases']} cases, {s['n_completed']} completed, {s['n_failed']} failed"
            + (f", wall {wall_s / 60:.1f} min" if wall_s is not None else "")]
     groups = Counter(r["group"] for r in results)
@@ -155,14 +160,22 @@ def format_report(results: list[dict[str, Any]], summary: dict[str, Any], wall_s
     fails = [r for r in sorted(results, key=lambda r: r["id"]) if r["status"] != "ok"]
     out.append(f"Failures ({len(fails)}):")
     out += [f"  {r['id']}: [{r['status']}] {r['error']}" for r in fails]
+    if gen_errors:
+        out.append(f"Generator errors (cases left out of every figure, {len(gen_errors)}):")
+        out += [f"  {r['id']}: {r['error']}" for r in gen_errors]
     out.append("")
     out.append("Targets (issue 12), on completed runs:")
-    rec = s["min_recall_detectable"]
-    out.append(f"  recall >= 90 % per effect at detectable strengths: min {100 * rec:.0f} %  {'PASS' if rec >= TARGETS['recall'] else 'MISS'}")
+
+    def verdict(x: float, ok: bool, digits: int = 0) -> str:
+        return "n/a" if x != x else f"{100 * x:.{digits}f} %  {'PASS' if ok else 'MISS'}"
+
+    rec, recm = s["min_recall_detectable"], s["min_recall_detectable_moving"]
+    out.append(f"  recall >= 90 % per effect at detectable strengths: min {verdict(rec, rec >= TARGETS['recall'])}")
+    out.append(f"    (detectable without standstill rows: min {verdict(recm, recm >= TARGETS['recall'])})")
     fr = s["false_rate"]
-    out.append(f"  false effect in <= 2 % of cases: {100 * fr:.1f} %  {'PASS' if fr <= TARGETS['false'] else 'MISS'}")
+    out.append(f"  false effect in <= 2 % of cases: {verdict(fr, fr <= TARGETS['false'], 1)}")
     cr = c[0] / c[1] if c[1] else float("nan")
-    out.append(f"  clean runs nothing added >= 98 %: {100 * cr:.0f} %  {'PASS' if cr >= TARGETS['clean'] else 'MISS'}")
+    out.append(f"  clean runs nothing added >= 98 %: {verdict(cr, cr >= TARGETS['clean'])}")
     pr = pd[0] / pd[1] if pd[1] else float("nan")
-    out.append(f"  two-effect cases both found >= 80 %: {100 * pr:.0f} %  {'PASS' if pr >= TARGETS['pairs'] else 'MISS'}")
+    out.append(f"  two-effect cases both found >= 80 %: {verdict(pr, pr >= TARGETS['pairs'])}")
     return "\n".join(out)
