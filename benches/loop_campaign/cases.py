@@ -20,7 +20,7 @@ emps       the real EMPS runs with effects planted on the measured force (and tw
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -281,7 +281,7 @@ def outside_effect(kind: str, strong: bool, rig: dict[str, Any], rng: Rng) -> di
     raise ValueError(kind)
 
 
-def _file_format(rng: Rng, rig: dict[str, Any], case_id: str, robot: bool = False) -> dict[str, Any]:
+def _file_format(rng: Rng, rig: dict[str, Any], robot: bool = False) -> dict[str, Any]:
     ext = "mat" if rng.random() < 0.4 else "csv"
     names = _pick(rng, [("t", "q", "f", "u"), ("time", "position", "force", "command"), ("timestamp", "pos", "tau", "cmd"), ("T", "x", "F", "vir")])
     if rig["axis"] == "rotary":
@@ -329,7 +329,7 @@ def _sim_for(names: set[str], rng: Rng) -> str:
     return "own"
 
 
-def make_case(group: str, idx: int, rng: Rng, effects: list[tuple[str, int]], outside: list[tuple[str, bool]] = (),
+def make_case(group: str, idx: int, rng: Rng, effects: list[tuple[str, int]], outside: Sequence[tuple[str, bool]] = (),
               sim: str | None = None, robot: bool = False, baseline: str = "reference", axis: str | None = None) -> dict[str, Any]:
     """One simulated case: a random rig with the given planted effects (name, grade)."""
     names = {n for n, _ in effects} | {n for n, _ in outside}
@@ -348,7 +348,7 @@ def make_case(group: str, idx: int, rng: Rng, effects: list[tuple[str, int]], ou
     if not effects and sim == "own" and rng.random() < 0.3:
         rig["contact"] = stiff_contact(rig, rng, "maxwell")
     plant(case, rng)
-    case["fmt"] = _file_format(rng, rig, case["id"], robot)
+    case["fmt"] = _file_format(rng, rig, robot)
     return case
 
 
@@ -365,7 +365,7 @@ EMPS_NATIVE = [{"name": "asymmetric_friction", "dFv": 1.0}]
 def emps_cases(rng: Rng, start: int = 0) -> list[dict[str, Any]]:
     """Effects planted on the real EMPS force ``gtau * vir`` (travel 0-0.25 m, |v| <= 0.125 m/s)."""
     L = 0.246
-    specs: list[dict[str, Any]] = []
+    specs: list[dict[str, Any] | None] = []
     # (10 N, 10 mm/s, Gaussian) is the issue's "strong low-speed hump" (4.03 -> 4.34 % estimation error)
     for dF, vs, kind, delta in [(4, 0.01, 0, 2.0), (8, 0.02, 0, 2.0), (10, 0.01, 0, 2.0), (14, 0.005, 0, 2.0),
                                 (16, 0.01, 1, 2.0), (20, 0.02, 0, 1.0), (24, 0.01, 0, 2.0), (30, 0.005, 0, 1.0)]:
@@ -382,8 +382,8 @@ def emps_cases(rng: Rng, start: int = 0) -> list[dict[str, Any]]:
         else:
             shape = make_shape(sines=[(B, 0.05, rng.uniform(0, 2 * math.pi))])
         specs.append({"name": "position_dependent_friction", "form": form, "shape": shape})
-    for dF, T, kind in [(1.0, 8.0, 0), (2.0, 5.0, 0), (4.0, 25.0, 1), (6.0, 10.0, 0), (3.0, 25.0, 1)]:
-        specs.append({"name": "friction_drift", "dF": dF, "T": T, "kind": kind})
+    for level, T, law in [(1.0, 8.0, 0), (2.0, 5.0, 0), (4.0, 25.0, 1), (6.0, 10.0, 0), (3.0, 25.0, 1)]:
+        specs.append({"name": "friction_drift", "dF": level, "T": T, "kind": law})
     for W, d in [(2.0, 20e-6), (5.0, 50e-6), (10.0, 20e-6), (15.0, 100e-6)]:
         brk = d * np.array([0.3, 1.0, 3.0])
         w = W * np.array([0.5, 0.3, 0.2])

@@ -39,7 +39,7 @@ import gmsfric as g
 try:  # numba makes the campaign's own integrator ~100x faster; the code runs without it
     from numba import njit
 except ImportError:  # pragma: no cover - exercised only without numba
-    def njit(*args: Any, **kwargs: Any) -> Any:
+    def njit(*args: Any, **kwargs: Any) -> Any:  # type: ignore[no-redef]
         if args and callable(args[0]):
             return args[0]
         return lambda f: f
@@ -489,7 +489,7 @@ def mechanics_vector(rig: dict[str, Any], effects: list[dict[str, Any]], rng: np
     return P, posf, posfric, ms_k, ms_w
 
 
-def _sample_indices(n_fine: int, h: float, step: int, jitter: str | None, rng: np.random.Generator) -> Array:
+def _sample_indices(n_fine: int, h: float, step: int, jitter: str | None, rng: np.random.Generator) -> NDArray[np.int64]:
     if jitter is None:
         return np.arange(0, n_fine, step)
     if jitter == "robot":
