@@ -704,7 +704,10 @@ def cli_args(fmt: dict[str, Any]) -> list[str]:
         args += ["--force", cols["force"]]
     for key, flag in (("time_unit", "--time-unit"), ("position_unit", "--position-unit"), ("force_unit", "--force-unit")):
         if fmt.get(key) and not (fmt.get("command") and key == "force_unit"):
-            args += [flag, fmt[key]]
+            unit = fmt[key]
+            if key == "force_unit" and unit == "N" and fmt.get("position_unit") in ("rad", "deg"):
+                unit = "N m"  # the file holds a torque (factor 1 either way): declare it as one
+            args += [flag, unit]
     return args
 
 
