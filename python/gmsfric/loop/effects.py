@@ -208,10 +208,28 @@ def position_periods(s: Signals, r: Array, odd: bool, n_peaks: int = 2) -> list[
     freqs, power = position_periodogram(grid, prof)
     if freqs.size < 4:
         return []
-    idx, _ = signal.find_peaks(power)
-    idx = idx[np.argsort(power[idx])[::-1]][:n_peaks]
     span = grid[-1] - grid[0]
-    return [float(1.0 / freqs[i]) for i in idx if 1.0 / freqs[i] < span / 2.5]
+    # at least 1.5 periods over the travel: a longer "period" is a smooth trend (Legendre)
+    ok = freqs > 1.5 / span
+    power = np.where(ok, power, 0.0)
+    idx, _ = signal.find_peaks(np.concatenate(([0.0], power, [0.0])))
+    idx = idx - 1
+    idx = idx[np.argsort(power[idx])[::-1]][:n_peaks]
+    return [_refine_period(grid, prof, float(freqs[i]), float(freqs[1] - freqs[0])) for i in idx if power[i] > 0]
+
+
+def _refine_period(grid: Array, prof: Array, f0: float, df: float) -> float:
+    """The period near ``1/f0`` that a sine fits best: the periodogram's frequencies are spaced
+    by one over the travel, so a peak is only known to within that spacing."""
+    X0 = np.ones_like(grid)
+    best_f, best = f0, -1.0
+    for f in np.linspace(max(f0 - df, 0.5 * f0), f0 + df, 41):
+        X = np.column_stack([X0, np.sin(2 * np.pi * f * grid), np.cos(2 * np.pi * f * grid)])
+        c, *_ = np.linalg.lstsq(X, prof, rcond=None)
+        explained = float(np.sum((X[:, 1:] @ c[1:]) ** 2))
+        if explained > best:
+            best_f, best = f, explained
+    return float(1.0 / best_f)
 
 
 def position_profile(s: Signals, r: Array, odd: bool, n_grid: int | None = None) -> tuple[Array, Array | None]:

@@ -19,7 +19,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
+from scipy import ndimage, signal
 
 from ..errors import IdentificationError
 from .data import AxisData
@@ -121,9 +121,17 @@ class Signals:
         self.resolution = position_resolution(data.position, q)
         #: Speed below which a row is at rest (the estimation run's threshold for a validation run).
         self.rest_speed = float(rest_speed) if rest_speed is not None else REST_FRACTION * self.v_scale
+        # A sample is stuck when the measured position does not change by more than its
+        # resolution within one period of the velocity filter: the velocity is then zero as far
+        # as the data can tell, even where the filtered velocity rings (after a stop, at a
+        # reversal where the axis sticks while the force crosses the stiction band).
+        h = max(1, int(round(self.fs / (2.0 * self.cutoff))))
+        span = ndimage.maximum_filter1d(data.position, 2 * h + 1) - ndimage.minimum_filter1d(data.position, 2 * h + 1)
+        stuck = span <= 1.5 * self.resolution
+        self.stuck = np.ascontiguousarray(stuck[self.edge : n - self.edge : self.dec][: self.n_rows])
         #: Rows where the axis moves; at rest a stuck axis holds any force up to break-away
         #: (set-valued stiction), which no regression column describes.
-        self.moving = np.abs(self.rows["qd"]) >= self.rest_speed
+        self.moving = (np.abs(self.rows["qd"]) >= self.rest_speed) & ~self.stuck
         self._cache: dict[tuple, Array] = {}
 
     def decimate(self, x: Array) -> Array:
@@ -159,7 +167,7 @@ class Term:
     hyper_names: tuple[str, ...] = ()
 
     def full(self, sig: Signals) -> Array:
-        return sig.cached(("full", self.name, self.hyper), lambda: np.atleast_2d(np.asarray(self.build(sig, self.hyper), dtype=float).T).T.reshape(sig.q.size, -1))
+        return sig.cached(("full", self.name, self.param_names, self.hyper), lambda: np.atleast_2d(np.asarray(self.build(sig, self.hyper), dtype=float).T).T.reshape(sig.q.size, -1))
 
     def with_hyper(self, hyper: tuple) -> "Term":
         return Term(self.name, self.param_names, self.build, tuple(hyper), self.hyper_names)
@@ -179,7 +187,7 @@ def _shift(x: Array, steps: float) -> Array:
 
 def term_rows(term: Term, sig: Signals, delay_steps: float = 0.0) -> Array:
     """Decimated regression rows of ``term`` on ``sig``, with the force delayed ``delay_steps`` samples."""
-    key = ("rows", term.name, term.hyper, round(delay_steps, 4))
+    key = ("rows", term.name, term.param_names, term.hyper, round(delay_steps, 4))
 
     def make() -> Array:
         return sig.decimate(_shift(term.full(sig), delay_steps))

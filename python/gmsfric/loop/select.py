@@ -201,7 +201,7 @@ def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
     rest = cfg.rest_fraction * s.v_scale
     if rest != s.rest_speed:
         s.rest_speed = rest
-        s.moving = np.abs(s.rows["qd"]) >= rest
+        s.moving = (np.abs(s.rows["qd"]) >= rest) & ~s.stuck
     if val is not None:
         v = Signals(val, cfg.preprocessing, q_range=s.q_range, rest_speed=rest)
         return Split(s, np.ones(s.n_rows, bool), v, np.ones(v.n_rows, bool), val.source)
@@ -260,18 +260,20 @@ class HeldOut:
 
 
 def paired_chunk_test(r0: Array, r1: Array, chunk: int) -> tuple[float, float, int]:
-    """One-sided test that ``r1`` is smaller than ``r0``: ``d = log(SSE0/SSE1)`` per contiguous
-    chunk, mean over a Newey-West standard error (the chunks' own autocorrelation counted),
-    p-value from Student's t with ``m - 1`` degrees of freedom.
+    """One-sided test that ``r1`` is smaller than ``r0``: per contiguous chunk the normalised
+    decrease of the squared error ``d = (SSE0 - SSE1) / (SSE0 + SSE1)``, its mean over a
+    Newey-West standard error (the chunks' own autocorrelation counted), p-value from Student's
+    t with ``m - 1`` degrees of freedom.
 
-    The log ratio is scale-free, so a few chunks with large forces (reversals, pulses) do not
-    swamp the others; for an effect fitted on other data and useless here its mean is zero or
-    below.  Returns ``(t, p, m)``."""
+    ``d`` is scale-free and bounded (-1 to 1): every chunk weighs the same, a few chunks with
+    large forces (reversals, pulses) do not swamp the others, and a chunk where both errors are
+    small noise cannot produce an outlier.  For an effect fitted on other data and useless here
+    its mean is zero or below.  Returns ``(t, p, m)``."""
     m = max(2, r0.size // chunk)
     c = r0.size // m
     a = (r0[: m * c] ** 2).reshape(m, c).sum(axis=1)
     b = (r1[: m * c] ** 2).reshape(m, c).sum(axis=1)
-    d = np.log((a + 1e-300) / (b + 1e-300))
+    d = (a - b) / np.maximum(a + b, 1e-300)
     mean = float(d.mean())
     dc = d - mean
     g0 = float(dc @ dc) / m
