@@ -156,20 +156,30 @@ def _add(model: LinearModel, term: Term, effect: str) -> LinearModel:
 
 
 def _asymmetric(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
-    # A Coulomb asymmetry is a constant force wherever the axis moves: with an offset in the
-    # model (and standstill rows left out of the fit) it *is* the offset, so only the viscous
-    # asymmetry is a column of its own.
-    if any(t.name == "offset" for t in model.terms):
-        t = Term("asymmetric_friction", ("dFv_asym",), lambda s, h: np.abs(s.qd))
-    else:
-        t = Term("asymmetric_friction", ("dFv_asym", "dFc_asym"), lambda s, h: np.column_stack([np.abs(s.qd), np.ones_like(s.qd)]))
+    # A Coulomb asymmetry is a constant force wherever the axis moves: with standstill rows left
+    # out of the fit it *is* an offset (the baseline's, or the ``offset`` effect), so only the
+    # viscous asymmetry is a column of its own.
+    t = Term("asymmetric_friction", ("dFv_asym",), lambda s, h: np.abs(s.qd))
     return [_add(model, t, "asymmetric_friction")]
+
+
+def velocity_resolution(s: Signals) -> float:
+    """Smallest speed scale a velocity curve can be identified on: three times the standstill
+    threshold, and the speed the axis gains within the velocity filter's time constant at its
+    typical (rms) acceleration -- through a reversal the filtered velocity cannot separate speeds
+    closer than that.  A narrower "Stribeck curve" only marks the rows next to a reversal or a
+    stop, where the force crosses the stiction band, and fits that instead of a speed law."""
+    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
+    return max(3.0 * s.rest_speed, a_rms / (2.0 * np.pi * s.cutoff))
 
 
 def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
+    lo, hi = velocity_resolution(s), 0.5 * s.v_scale
+    if not hi > lo:
+        return out
     for delta in (1.0, 2.0):
-        for vs in s.v_scale * np.geomspace(0.003, 0.5, 14):
+        for vs in np.geomspace(lo, hi, max(2, min(14, int(np.ceil(6 * np.log10(hi / lo))) + 1))):
             t = Term("stribeck", ("Fs_minus_Fc",), lambda s, h: np.sign(s.qd) * curves.stribeck_shape(s.qd, h[0], h[1]), (float(vs), delta), ("vs", "stribeck_delta"))
             out.append(_add(model, t, "stribeck"))
     return out
@@ -184,14 +194,16 @@ PRESLIDING_MAX_FRACTION = 0.01
 def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
     span = float(np.ptp(s.q))
-    # from what the position resolves (a block whose range is below a few encoder steps is a
-    # Coulomb term) to the elastic range's upper bound
-    lo, hi = 3.0 * s.resolution, PRESLIDING_MAX_FRACTION * span
+    # from what the position resolves to the elastic range's upper bound; every block's range
+    # spans at least two resolution steps (a narrower block only switches at a reversal: a
+    # Coulomb term that marks reversals, where the force crosses the stiction band)
+    lo, hi = 2.0 * s.resolution, PRESLIDING_MAX_FRACTION * span
     if not hi > lo:
         return out
     for dmax in np.geomspace(lo, hi, max(2, min(12, int(np.ceil(4 * np.log10(hi / lo))) + 1))):
-        deltas = (float(dmax), float(dmax) / 5.0, float(dmax) / 25.0)
-        t = Term("presliding_hysteresis", tuple(f"w_block{i + 1}" for i in range(3)), lambda s, h: np.column_stack([_play(s, d) for d in h]), deltas, tuple(f"Delta_block{i + 1}" for i in range(3)))
+        deltas = tuple(float(d) for d in (dmax, dmax / 5.0, dmax / 25.0) if d >= lo)
+        n = len(deltas)
+        t = Term("presliding_hysteresis", tuple(f"w_block{i + 1}" for i in range(n)), lambda s, h: np.column_stack([_play(s, d) for d in h]), deltas, tuple(f"Delta_block{i + 1}" for i in range(n)))
         out.append(_add(model, t, "presliding_hysteresis"))
     return out
 

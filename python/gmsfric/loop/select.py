@@ -25,8 +25,10 @@ The loop runs in named stages (:func:`run_loop`):
      rounds stays below ``alpha``;
    * the held-out error must also drop by ``min_gain`` (relative), the BIC on the estimation
      rows must decrease, the effect's own parameters must be physical, and the baseline's
-     physical parameters (mass, effective Coulomb and viscous levels) must stay within a factor
-     ``max_parameter_ratio`` of the baseline's: an effect may not buy its gain by corrupting them.
+     physical parameters must stay plausible: mass and effective viscous coefficient physical,
+     the effective Coulomb level (all friction terms projected on ``sign(qd)``, ``qd``) within a
+     factor ``max_parameter_ratio`` of the baseline's -- an effect may not buy its gain by
+     explaining the friction away.
 
    Among the effects that pass, the one with the largest held-out gain enters (effects compete on
    the same held-out rows).  Then every accepted effect's grid parameters and the alignment are
@@ -92,8 +94,8 @@ class LoopConfig:
     min_gain : float
         Smallest relative decrease of the held-out error that counts (0.01 = 1 %; in [0, 1)).
     max_parameter_ratio : float
-        An effect may change the baseline's mass and effective Coulomb and viscous levels by at
-        most this factor either way (> 1).
+        An effect may change the baseline's effective Coulomb level by at most this factor either
+        way (> 1); the mass and viscous coefficient must stay physical.
     rest_fraction : float
         Rows slower than this fraction of the run's speed scale (99th percentile of ``|qd|``) are
         standstill, left out of fits and tests (in [0, 0.5)).
@@ -374,7 +376,14 @@ def baseline_physics(m: LinearModel, split: Split) -> dict[str, float]:
 
 def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: LinearModel, split: Split, cfg: LoopConfig) -> tuple[dict[str, Any], str | None]:
     """Baseline parameters before (the baseline's) and with this step, and why they are
-    implausible (``None`` when they are not)."""
+    implausible (``None`` when they are not).
+
+    The mass and the viscous coefficient must stay physical (positive, or not significantly
+    negative).  They may move a lot: the baseline absorbs whatever a missing effect correlates
+    with (a spring ``k q`` looks like ``-k/w^2 qdd`` on an oscillation, a delay shifts force onto
+    ``qdd`` and ``qd``), and the right effect gives it back.  The Coulomb level is what the axis
+    slides at, a level every trajectory shows: an effect that changes the effective level by more
+    than ``max_parameter_ratio`` (either way) explains friction away instead of adding to it."""
     now = baseline_physics(m, split)
     report: dict[str, Any] = {}
     why = None
@@ -382,9 +391,15 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
         a = now.get(k, float("nan"))
         ratio = a / b if b else float("nan")
         report[k] = {"baseline": float(f"{b:.6g}"), "with_step": float(f"{a:.6g}"), "ratio": round(ratio, 4) if np.isfinite(ratio) else None}
-        if why is None and abs(b) > 3.0 * base_std.get(k, 0.0) and np.isfinite(ratio):
-            if not 1.0 / cfg.max_parameter_ratio <= ratio <= cfg.max_parameter_ratio:
-                why = f"implausible baseline: {k} {b:.4g} -> {a:.4g} (x{ratio:.2f}, beyond a factor {cfg.max_parameter_ratio:g})"
+        if why is not None or not np.isfinite(a):
+            continue
+        sd = base_std.get(k, 0.0)
+        if k == "M" and a <= 0:
+            why = f"implausible baseline: the mass becomes {a:.4g} (not positive)"
+        elif k == "Fv" and a < -3.0 * sd:
+            why = f"implausible baseline: the effective viscous coefficient becomes {a:.4g} (negative)"
+        elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and not 1.0 / cfg.max_parameter_ratio <= ratio <= cfg.max_parameter_ratio:
+            why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, beyond a factor {cfg.max_parameter_ratio:g})"
     return report, why
 
 
