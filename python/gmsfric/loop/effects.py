@@ -343,8 +343,10 @@ def _heating_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearMo
 def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
     f_hi = 0.4 * s.fs / s.dec
+    # a resonance: damping ratios that leave a peak (above ~0.7 a "load on a spring" is an added
+    # mass and a low-pass filter, which fits any smooth lag)
     for fn in np.geomspace(2.0, f_hi, 18):
-        for zeta in (0.05, 0.15, 0.4, 0.8):
+        for zeta in (0.03, 0.1, 0.2, 0.4):
             t = Term("compliance", ("m_load",), lambda s, h: _compliance(s, h[0], h[1]), (float(fn), zeta), ("fn_hz", "zeta"))
             out.append(_add(model, t, "compliance"))
     return out

@@ -125,9 +125,12 @@ class Signals:
         # resolution within one period of the velocity filter: the velocity is then zero as far
         # as the data can tell, even where the filtered velocity rings (after a stop, at a
         # reversal where the axis sticks while the force crosses the stiction band).
+        # The filtered velocity averages over about the same window, so the samples within it
+        # of a stop (before the axis starts, after it stops) have a velocity that blends motion
+        # and rest: they count as standstill too.
         h = max(1, int(round(self.fs / (2.0 * self.cutoff))))
         span = ndimage.maximum_filter1d(data.position, 2 * h + 1) - ndimage.minimum_filter1d(data.position, 2 * h + 1)
-        stuck = span <= 1.5 * self.resolution
+        stuck = ndimage.maximum_filter1d((span <= 1.5 * self.resolution).astype(np.uint8), 2 * h + 1).astype(bool)
         self.stuck = np.ascontiguousarray(stuck[self.edge : n - self.edge : self.dec][: self.n_rows])
         #: Rows where the axis moves; at rest a stuck axis holds any force up to break-away
         #: (set-valued stiction), which no regression column describes.

@@ -116,9 +116,9 @@ class LoopConfig:
     holdout_fraction: float = 0.3
     n_blocks: int = 10
     inner_folds: int = 5
-    alpha: float = 0.01
+    alpha: float = 0.05
     t_threshold: float = 3.0
-    min_gain: float = 0.01
+    min_gain: float = 0.05
     max_parameter_ratio: float = 2.0
     rest_fraction: float = 0.01
     max_effects: int = 6
@@ -348,16 +348,18 @@ def _replace_term(m: LinearModel, term: Term) -> LinearModel:
 
 
 def baseline_physics(m: LinearModel, split: Split) -> dict[str, float]:
-    """The baseline's physical parameters as ``m`` has them: the mass, and the Coulomb and viscous
-    levels its whole friction amounts to (every friction term's force projected, on the moving
-    estimation rows, on ``sign(qd)`` and ``qd``): a Stribeck curve, blocks, a drift or heating
-    change how the friction is split, not how large it is."""
+    """The baseline's physical parameters as ``m`` has them: the mass, the viscous coefficient,
+    and the Coulomb level its whole friction amounts to (every friction term's force projected,
+    on the moving estimation rows, on ``sign(qd)`` and ``qd``): a Stribeck curve, blocks, a drift
+    or heating change how the friction is split, not how large it is."""
     S, rows = split.est, split.est_fit
     assert m.theta is not None
     theta = dict(zip(m.param_names, m.theta))
     out: dict[str, float] = {}
     if "M" in theta:
         out["M"] = float(theta["M"])
+    if "Fv" in theta:
+        out["Fv"] = float(theta["Fv"])
     names = [t.name for t in m.terms]
     if "coulomb" in names and "viscous" in names:
         steps = m.delay / S.dt
@@ -370,7 +372,7 @@ def baseline_physics(m: LinearModel, split: Split) -> dict[str, float]:
             k += n
         B = np.column_stack([term_rows(BASE_TERMS["coulomb"], S, steps), term_rows(BASE_TERMS["viscous"], S, steps)])[rows]
         c = np.linalg.lstsq(B, fric[rows], rcond=None)[0]
-        out["Fc"], out["Fv"] = float(c[0]), float(c[1])
+        out["Fc"] = float(c[0])
     return out
 
 
@@ -397,7 +399,7 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
         if k == "M" and a <= 0:
             why = f"implausible baseline: the mass becomes {a:.4g} (not positive)"
         elif k == "Fv" and a < -3.0 * sd:
-            why = f"implausible baseline: the effective viscous coefficient becomes {a:.4g} (negative)"
+            why = f"implausible baseline: the viscous coefficient becomes {a:.4g} (negative)"
         elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and not 1.0 / cfg.max_parameter_ratio <= ratio <= cfg.max_parameter_ratio:
             why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, beyond a factor {cfg.max_parameter_ratio:g})"
     return report, why
