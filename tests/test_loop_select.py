@@ -138,4 +138,4 @@ def test_an_effect_that_corrupts_the_baseline_is_refused():
     assert why is None and all(v["ratio"] == pytest.approx(1.0) for v in same.values())
     bad = LinearModel(list(m0.terms), theta=m0.theta * np.array([1.0, 1.0, 0.3, 1.0]), cov=m0.cov)
     change, why = _plausibility(phys, std, bad, split, cfg)
-    assert why is not None and "Fc" in why and change["Fc"]["ratio"] == pytest.approx(0.3, rel=1e-3)
+    assert why is not None and "Coulomb level" in why and change["Fc"]["ratio"] == pytest.approx(0.3, rel=1e-3)

@@ -173,6 +173,14 @@ def velocity_resolution(s: Signals) -> float:
     return max(3.0 * s.rest_speed, a_rms / (2.0 * np.pi * s.cutoff))
 
 
+def direction_resolution(s: Signals) -> float:
+    """Distance the axis travels through a reversal (at its rms acceleration) within the velocity
+    filter's time constant: below it, sign(qd) of the filtered velocity cannot place the change of
+    direction."""
+    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
+    return a_rms / (2.0 * np.pi * s.cutoff) ** 2
+
+
 def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
     lo, hi = velocity_resolution(s), 0.5 * s.v_scale
@@ -194,10 +202,11 @@ PRESLIDING_MAX_FRACTION = 0.01
 def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
     span = float(np.ptp(s.q))
-    # from what the position resolves to the elastic range's upper bound; every block's range
-    # spans at least two resolution steps (a narrower block only switches at a reversal: a
-    # Coulomb term that marks reversals, where the force crosses the stiction band)
-    lo, hi = 2.0 * s.resolution, PRESLIDING_MAX_FRACTION * span
+    # from what the data resolve to the elastic range's upper bound: every block's range spans
+    # two resolution steps and the distance the axis travels through a reversal within the
+    # velocity filter's time constant (a narrower block only switches with the direction of
+    # motion: a sharper Coulomb term than sign(qd) of the filtered velocity, not pre-sliding)
+    lo, hi = max(2.0 * s.resolution, direction_resolution(s)), PRESLIDING_MAX_FRACTION * span
     if not hi > lo:
         return out
     for dmax in np.geomspace(lo, hi, max(2, min(12, int(np.ceil(4 * np.log10(hi / lo))) + 1))):
