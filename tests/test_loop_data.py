@@ -99,3 +99,35 @@ def test_unknown_unit(tmp_path):
     p = _csv(tmp_path / "run.csv", {"t": t, "q": q, "F": f})
     with pytest.raises(UnitError, match="`position_unit`.*unknown unit 'furlong'"):
         load_axis_data(p, time="t", position="q", force="F", position_unit="furlong")
+
+
+def test_jittered_log_is_resampled_not_refused(tmp_path):
+    """A robot log that is late now and then (steps 2-18 ms around 10 ms) is put on a uniform
+    grid at its median step; the jitter is measured and reported, the signals interpolated."""
+    rng = np.random.default_rng(3)
+    k = np.arange(3000)
+    late = np.where(rng.random(k.size) < 0.15, rng.uniform(0.002, 0.008, k.size), 0.0)
+    t = k * 0.01 + late
+    q = 0.3 * np.sin(2 * np.pi * 0.2 * t)
+    f = 2.0 * np.cos(2 * np.pi * 0.2 * t)
+    p = _csv(tmp_path / "robot.csv", {"t": t, "q": q, "tau": f})
+    d = load_axis_data(p, time="t", position="q", force="tau", position_unit="rad", force_unit="N m")
+    tm = d.timing
+    assert tm["irregular"] and tm["resampled"]
+    assert tm["median_step_s"] == pytest.approx(0.01, rel=1e-6)
+    assert tm["min_step_s"] < 0.005 and tm["max_step_s"] > 0.015 and 5.0 < tm["irregular_steps_pct"] < 40.0
+    np.testing.assert_allclose(np.diff(d.t), 0.01, rtol=1e-9)
+    assert d.t[0] == t[0] and d.t[-1] <= t[-1] and tm["samples_out"] == d.t.size
+    # linear interpolation of a smooth signal sampled at 100 Hz: errors of order (w dt)^2 / 8
+    np.testing.assert_allclose(d.position, 0.3 * np.sin(2 * np.pi * 0.2 * d.t), atol=0.3 * (2 * np.pi * 0.2 * 0.02) ** 2)
+    np.testing.assert_allclose(d.force, 2.0 * np.cos(2 * np.pi * 0.2 * d.t), atol=2.0 * (2 * np.pi * 0.2 * 0.02) ** 2)
+    assert d.rotary
+
+
+def test_uniform_log_is_left_alone(tmp_path):
+    t, q, f = _run()
+    t = t + 1e-9 * np.random.default_rng(0).standard_normal(t.size)  # rounding in a text file
+    p = _csv(tmp_path / "run.csv", {"t": t, "q": q, "F": f})
+    d = load_axis_data(p, time="t", position="q", force="F")
+    assert not d.timing["irregular"] and not d.timing["resampled"]
+    np.testing.assert_array_equal(d.position, q)

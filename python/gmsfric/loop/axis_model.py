@@ -7,13 +7,15 @@ inverse-model term                    in the AxisModel
 ``M qdd``                             rigid plant of mass ``M`` (less a compliant load)
 ``Fv qd + Fc sign(qd) + offset``      static map (viscous, Coulomb, offset)
 ``stribeck``                          the map's Stribeck curve ``fs = Fc + (Fs - Fc)``
-``asymmetric_friction``               per-direction levels ``Fc +- dF``, ``Fv +- dFv``
+``asymmetric_friction``               per-direction viscous ``Fv +- dFv`` (a constant column: the offset)
 ``position_dependent_friction``       Coulomb level ``+ g(q)`` (same Legendre/Fourier basis)
 ``position_dependent_force``          force ``g(q)``
 ``friction_drift``                    drift ``h(t)`` (linear over the estimation run, or exponential)
+``heating``                           heating: levels ``+ dFc m``, ``+ dFv m``, ``m`` the low-passed speed
 ``presliding_hysteresis``             Maxwell-slip blocks ``k_i = w_i / Delta_i``
 ``compliance``                        load ``m_load`` on a spring-damper (``fn``, ``zeta``)
-``input_delay``                       the plant's delay (less the half-sample alignment)
+``input_delay`` / alignment           the plant's delay: the force's shift less the half sample the
+                                      core's hold simulates
 ====================================  ======================================================
 """
 
@@ -24,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ..axis import AxisModel, AxisUnits, Compliance, Covariance, Drift, Effects, PositionSeries
+from ..axis import AxisModel, AxisUnits, Compliance, Covariance, Drift, Effects, Heating, PositionSeries
 from ..errors import InvalidInputError
 from ..models import MaxwellSlip, StaticFriction, Stribeck
 from ..system import Plant
@@ -83,10 +85,10 @@ def to_axis_model(model: LinearModel, est: Signals, *, gain: float | None = None
         vs, delta = float(t.hyper[0]), float(t.hyper[1])
     if "asymmetric_friction" in by_term:
         t, c = by_term["asymmetric_friction"]
-        if t.param_names[1] == "dF_moving":
-            effects["asymmetry"] = (float(c[1]), float(c[0]))
-        else:  # without an offset term the constant column is an offset
-            effects["asymmetry"] = (0.0, float(c[0]))
+        # the viscous asymmetry; a constant column (the model had no offset) is the offset:
+        # while moving, a Coulomb asymmetry and an offset are the same force
+        effects["asymmetry"] = (0.0, float(c[0]))
+        if len(c) > 1:
             offset += float(c[1])
     if "position_dependent_friction" in by_term:
         t, c = by_term["position_dependent_friction"]
@@ -99,6 +101,9 @@ def to_axis_model(model: LinearModel, est: Signals, *, gain: float | None = None
         tau_frac = float(t.hyper[0])
         shape, scale = ("linear", est.duration) if tau_frac <= 0 else ("exponential", tau_frac * est.duration)
         effects["drift"] = Drift(shape, scale, float(c[0]), float(c[1]))  # type: ignore[arg-type]
+    if "heating" in by_term:
+        t, c = by_term["heating"]
+        effects["heating"] = Heating(float(t.hyper[0]), float(c[0]), float(c[1]))
     if "presliding_hysteresis" in by_term:
         t, c = by_term["presliding_hysteresis"]
         w = np.clip(c, 0.0, None)

@@ -34,7 +34,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--gain", metavar="G", help="drive gain, N per command unit: a number or a scalar name in the file")
     p.add_argument("--time-unit", default="s")
     p.add_argument("--position-unit", default="m")
-    p.add_argument("--force-unit", default="N")
+    p.add_argument("--force-unit", default=None, help="unit of the force column (default N, or N m on a rotary axis)")
     p.add_argument("--json", metavar="OUT", help="write the report as JSON")
     p.add_argument("--plot", metavar="DIR", help="write figures (PNG) into DIR")
     p.add_argument("--baseline", choices=("reference", "rigid"), default="reference",
@@ -60,6 +60,8 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
     """Run ``gmsfric loop`` (called by the runner of :mod:`gmsfric.cli`)."""
     _units.check(args.time_unit, "time", name="--time-unit")
     rotary = _units.is_rotary(args.position_unit, "position", name="--position-unit")
+    if args.force_unit is None:
+        args.force_unit = "N m" if rotary else "N"
     _units.check(args.force_unit, "force", rotary=rotary, name="--force-unit")
     if (args.kp is None) != (args.kv is None) or (args.kp is not None and not args.reference):
         raise DataError("the closed-loop simulation needs --reference, --kp and --kv together")

@@ -2,17 +2,21 @@
 columns (linear parameters) with, for some, a nonlinear parameter fitted by a grid search.
 
 =============================  ===============================================================
-``asymmetric_friction``        viscous friction (and, with an offset in the model, the Coulomb
-                               level while moving) differ between the two directions
-``stribeck``                   ``(Fs - Fc) sign(qd) exp(-|qd/vs|^delta)``: friction falls from a
-                               break-away level at low speed
+``asymmetric_friction``        viscous friction (and, without an offset in the model, the Coulomb
+                               level) differ between the two directions
+``stribeck``                   ``(Fs - Fc) sign(qd) exp(-|qd/vs|^delta)``: friction goes from its
+                               level at rest ``Fs > 0`` to the sliding level (either way)
 ``presliding_hysteresis``      GMS / Maxwell-slip blocks: elasto-plastic elements of break
                                displacement ``Delta_i`` and break force ``w_i`` (rate-independent
                                hysteresis after each reversal)
 ``position_dependent_friction``  ``sign(qd) g(q)``: the Coulomb level varies along the travel
 ``position_dependent_force``   ``g(q)``, independent of direction: cogging, springs, cables
-``input_delay``                the force acts ``tau`` after it is commanded
+``input_delay``                the force acts ``tau`` after it is commanded, ``tau`` beyond one
+                               sample (timing within a sample is the loop's alignment, not an effect)
 ``friction_drift``             ``(Fc sign(qd) + Fv qd) h(t)``: friction changes over the run
+``heating``                    ``(dFc sign(qd) + dFv qd) m(t)``, ``m`` the speed ``|qd|`` low-passed
+                               with a time constant ``tau`` (s): friction that follows the recent
+                               motion (lubricant or contact temperature)
 ``compliance``                 a load ``m2`` on a spring-damper (``fn``, ``zeta``) behind the
                                measured motor: ``m2 (H(s) - 1) qdd``
 ``offset``                     a constant force (when the model has none)
@@ -67,13 +71,14 @@ def _basis(s: Signals, h: tuple) -> Array:
     return _fourier(s, tuple(h[2:]), int(h[1]))
 
 
-def _basis_names(prefix: str, h: tuple) -> tuple[str, ...]:
+def _basis_names(prefix: str, h: tuple, rotary: bool = False) -> tuple[str, ...]:
     if h[0] == 0:
         return tuple(f"{prefix}_P{d}" for d in range(1, int(h[1]) + 1))
     names = []
+    unit = "mrad" if rotary else "mm"  # the period, in thousandths of the position unit
     for p in h[2:]:
         for k in range(1, int(h[1]) + 1):
-            names += [f"{prefix}_sin{k}_{p * 1e3:.4g}mm", f"{prefix}_cos{k}_{p * 1e3:.4g}mm"]
+            names += [f"{prefix}_sin{k}_{p * 1e3:.4g}{unit}", f"{prefix}_cos{k}_{p * 1e3:.4g}{unit}"]
     return tuple(names)
 
 
@@ -88,6 +93,19 @@ def _compliance(s: Signals, fn: float, zeta: float) -> Array:
     # (H - 1) qdd with H = (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2): -s^2/(...) qdd
     b, a = signal.bilinear([-1.0, 0.0, 0.0], [1.0, 2 * zeta * w, w * w], fs=s.fs)
     return signal.lfilter(b, a, s.qdd)
+
+
+def lowpassed_speed(s: Signals, tau: float) -> Array:
+    """``m' = (|qd| - m) / tau`` from ``m(0) = |qd(0)|`` (the core's heating state), exact for a
+    speed held over each sample."""
+    a = float(np.exp(-s.dt / tau))
+    x = np.abs(s.qd)
+    return signal.lfilter([1.0 - a], [1.0, -a], x, zi=[a * x[0]])[0]
+
+
+def _heating(s: Signals, tau: float) -> Array:
+    m = lowpassed_speed(s, tau)
+    return np.column_stack([np.sign(s.qd) * m, s.qd * m])
 
 
 def _drift(s: Signals, tau_frac: float) -> Array:
@@ -138,32 +156,63 @@ def _add(model: LinearModel, term: Term, effect: str) -> LinearModel:
 
 
 def _asymmetric(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
-    has_offset = any(t.name == "offset" for t in model.terms)
-    if has_offset:
-        eps = 0.02 * s.v_scale
-        t = Term("asymmetric_friction", ("dFv_asym", "dF_moving"), lambda s, h: np.column_stack([np.abs(s.qd), (np.abs(s.qd) > h[0]).astype(float)]), (eps,), ())
-    else:
-        t = Term("asymmetric_friction", ("dFv_asym", "dFc_asym"), lambda s, h: np.column_stack([np.abs(s.qd), np.ones_like(s.qd)]))
+    # A Coulomb asymmetry is a constant force wherever the axis moves: with standstill rows left
+    # out of the fit it *is* an offset (the baseline's, or the ``offset`` effect), so only the
+    # viscous asymmetry is a column of its own.
+    t = Term("asymmetric_friction", ("dFv_asym",), lambda s, h: np.abs(s.qd))
     return [_add(model, t, "asymmetric_friction")]
+
+
+def velocity_resolution(s: Signals) -> float:
+    """Smallest speed scale a velocity curve can be identified on: three times the standstill
+    threshold, and the speed the axis gains within the velocity filter's time constant at its
+    typical (rms) acceleration -- through a reversal the filtered velocity cannot separate speeds
+    closer than that.  A narrower "Stribeck curve" only marks the rows next to a reversal or a
+    stop, where the force crosses the stiction band, and fits that instead of a speed law."""
+    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
+    return max(3.0 * s.rest_speed, a_rms / (2.0 * np.pi * s.cutoff))
+
+
+def direction_resolution(s: Signals) -> float:
+    """Distance the axis travels through a reversal (at its rms acceleration) within the velocity
+    filter's time constant: below it, sign(qd) of the filtered velocity cannot place the change of
+    direction."""
+    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
+    return a_rms / (2.0 * np.pi * s.cutoff) ** 2
 
 
 def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
+    lo, hi = velocity_resolution(s), 0.5 * s.v_scale
+    if not hi > lo:
+        return out
     for delta in (1.0, 2.0):
-        for vs in s.v_scale * np.geomspace(0.003, 0.5, 14):
+        for vs in np.geomspace(lo, hi, max(2, min(14, int(np.ceil(6 * np.log10(hi / lo))) + 1))):
             t = Term("stribeck", ("Fs_minus_Fc",), lambda s, h: np.sign(s.qd) * curves.stribeck_shape(s.qd, h[0], h[1]), (float(vs), delta), ("vs", "stribeck_delta"))
             out.append(_add(model, t, "stribeck"))
     return out
 
 
+#: Largest pre-sliding break displacement, as a fraction of the travel: pre-sliding is the elastic
+#: range of a contact (micrometres on machine axes); a "break displacement" of a sizeable part of
+#: the travel would be a force of the position since the last reversal, not friction.
+PRESLIDING_MAX_FRACTION = 0.01
+
+
 def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
     span = float(np.ptp(s.q))
-    for dmax in np.geomspace(2e-7, 2e-3, 13):
-        if dmax > 0.2 * span:
-            break
-        deltas = (float(dmax), float(dmax) / 5.0, float(dmax) / 25.0)
-        t = Term("presliding_hysteresis", tuple(f"w_block{i + 1}" for i in range(3)), lambda s, h: np.column_stack([_play(s, d) for d in h]), deltas, tuple(f"Delta_block{i + 1}" for i in range(3)))
+    # from what the data resolve to the elastic range's upper bound: every block's range spans
+    # two resolution steps and the distance the axis travels through a reversal within the
+    # velocity filter's time constant (a narrower block only switches with the direction of
+    # motion: a sharper Coulomb term than sign(qd) of the filtered velocity, not pre-sliding)
+    lo, hi = max(2.0 * s.resolution, direction_resolution(s)), PRESLIDING_MAX_FRACTION * span
+    if not hi > lo:
+        return out
+    for dmax in np.geomspace(lo, hi, max(2, min(12, int(np.ceil(4 * np.log10(hi / lo))) + 1))):
+        deltas = tuple(float(d) for d in (dmax, dmax / 5.0, dmax / 25.0) if d >= lo)
+        n = len(deltas)
+        t = Term("presliding_hysteresis", tuple(f"w_block{i + 1}" for i in range(n)), lambda s, h: np.column_stack([_play(s, d) for d in h]), deltas, tuple(f"Delta_block{i + 1}" for i in range(n)))
         out.append(_add(model, t, "presliding_hysteresis"))
     return out
 
@@ -180,10 +229,28 @@ def position_periods(s: Signals, r: Array, odd: bool, n_peaks: int = 2) -> list[
     freqs, power = position_periodogram(grid, prof)
     if freqs.size < 4:
         return []
-    idx, _ = signal.find_peaks(power)
-    idx = idx[np.argsort(power[idx])[::-1]][:n_peaks]
     span = grid[-1] - grid[0]
-    return [float(1.0 / freqs[i]) for i in idx if 1.0 / freqs[i] < span / 2.5]
+    # at least 1.5 periods over the travel: a longer "period" is a smooth trend (Legendre)
+    ok = freqs > 1.5 / span
+    power = np.where(ok, power, 0.0)
+    idx, _ = signal.find_peaks(np.concatenate(([0.0], power, [0.0])))
+    idx = idx - 1
+    idx = idx[np.argsort(power[idx])[::-1]][:n_peaks]
+    return [_refine_period(grid, prof, float(freqs[i]), float(freqs[1] - freqs[0])) for i in idx if power[i] > 0]
+
+
+def _refine_period(grid: Array, prof: Array, f0: float, df: float) -> float:
+    """The period near ``1/f0`` that a sine fits best: the periodogram's frequencies are spaced
+    by one over the travel, so a peak is only known to within that spacing."""
+    X0 = np.ones_like(grid)
+    best_f, best = f0, -1.0
+    for f in np.linspace(max(f0 - df, 0.5 * f0), f0 + df, 41):
+        X = np.column_stack([X0, np.sin(2 * np.pi * f * grid), np.cos(2 * np.pi * f * grid)])
+        c, *_ = np.linalg.lstsq(X, prof, rcond=None)
+        explained = float(np.sum((X[:, 1:] @ c[1:]) ** 2))
+        if explained > best:
+            best_f, best = f, explained
+    return float(1.0 / best_f)
 
 
 def position_profile(s: Signals, r: Array, odd: bool, n_grid: int | None = None) -> tuple[Array, Array | None]:
@@ -227,11 +294,12 @@ def _position_variants(model: LinearModel, s: Signals, r: Array, odd: bool, name
     if len(periods) > 1:
         hypers.append((1, 2, *periods))
     out = []
+    rotary = bool(getattr(s.data, "rotary", False))
     for h in hypers:
         if odd:
-            t = Term(name, _basis_names(prefix, h), lambda s, h: np.sign(s.qd)[:, None] * _basis(s, h), h, ())
+            t = Term(name, _basis_names(prefix, h, rotary), lambda s, h: np.sign(s.qd)[:, None] * _basis(s, h), h, ())
         else:
-            t = Term(name, _basis_names(prefix, h), lambda s, h: _basis(s, h), h, ())
+            t = Term(name, _basis_names(prefix, h, rotary), lambda s, h: _basis(s, h), h, ())
         out.append(_add(model, t, name))
     return out
 
@@ -244,9 +312,14 @@ def _pos_force(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     return _position_variants(model, s, r, False, "position_dependent_force")
 
 
+#: Delays (in samples) tried for ``input_delay``: beyond one sample, the loop's timing alignment
+#: covers the sampling hold and the time stamp's uncertainty within a sample.
+DELAY_STEPS = np.concatenate((np.arange(1.2, 2.0, 0.2), np.arange(2.0, 4.0, 0.25), np.arange(4.0, 12.0, 1.0), np.arange(12.0, 31.0, 3.0)))
+
+
 def _delay(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
-    for steps in np.concatenate((np.arange(0.1, 1.0, 0.1), np.arange(1.0, 4, 0.25), np.arange(4, 30, 1.0))):
+    for steps in DELAY_STEPS:
         m = model.copy()
         m.delay = float(steps * s.dt)
         m.effects.append("input_delay")
@@ -262,11 +335,27 @@ def _drift_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearMode
     return out
 
 
+#: Time constants of ``heating``, in seconds: thermal, never faster than a second (a faster
+#: "memory" of the speed is a velocity-dependent friction), up to twice the run.
+HEATING_MIN_TAU_S = 1.0
+
+
+def _heating_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
+    out = []
+    hi = max(2.0 * s.duration, 2.0 * HEATING_MIN_TAU_S)
+    for tau in np.geomspace(HEATING_MIN_TAU_S, hi, 7):
+        t = Term("heating", ("dFc_heating", "dFv_heating"), lambda s, h: _heating(s, h[0]), (float(tau),), ("heating_tau_s",))
+        out.append(_add(model, t, "heating"))
+    return out
+
+
 def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
     f_hi = 0.4 * s.fs / s.dec
+    # a resonance: damping ratios that leave a peak (above ~0.7 a "load on a spring" is an added
+    # mass and a low-pass filter, which fits any smooth lag)
     for fn in np.geomspace(2.0, f_hi, 18):
-        for zeta in (0.05, 0.15, 0.4, 0.8):
+        for zeta in (0.03, 0.1, 0.2, 0.4):
             t = Term("compliance", ("m_load",), lambda s, h: _compliance(s, h[0], h[1]), (float(fn), zeta), ("fn_hz", "zeta"))
             out.append(_add(model, t, "compliance"))
     return out
@@ -276,14 +365,22 @@ def _offset(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     return [_add(model, Term("offset", ("offset",), lambda s, h: np.ones_like(s.q)), "offset")]
 
 
-def _positive(*names: str) -> Callable[[dict[str, dict[str, float]]], str | None]:
-    def check(p: dict[str, dict[str, float]]) -> str | None:
-        for n in names:
-            if n in p and p[n]["value"] <= 0:
-                return f"{n} = {p[n]['value']:.3g} has the wrong sign"
-        return None
+def _stribeck_ok(p: dict[str, dict[str, float]]) -> str | None:
+    # The curve may fall or rise towards rest (friction lower at low speed happens, e.g. in a
+    # preloaded screw); what must hold is a positive friction level at rest, Fs = Fc + (Fs - Fc).
+    fc = p.get("Fc", {"value": 0.0})["value"]
+    ds = p["Fs_minus_Fc"]["value"] if "Fs_minus_Fc" in p else 0.0
+    if fc + ds <= 0:
+        return f"friction level at rest Fs = Fc + (Fs - Fc) = {fc + ds:.3g} is not positive"
+    return None
 
-    return check
+
+def _load_ok(p: dict[str, dict[str, float]]) -> str | None:
+    m2 = p["m_load"]["value"] if "m_load" in p else 0.0
+    mass = p["M"]["value"] if "M" in p else np.inf
+    if not 0 < m2 < mass:
+        return f"load mass m_load = {m2:.3g} is not between 0 and the axis mass M = {mass:.3g}"
+    return None
 
 
 def _blocks_ok(p: dict[str, dict[str, float]]) -> str | None:
@@ -297,13 +394,14 @@ CATALOGUE: dict[str, Effect] = {
     e.name: e
     for e in (
         Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric),
-        Effect("stribeck", "friction falls from a break-away level at low speed (Stribeck curve)", "velocity", _stribeck, _positive("Fs_minus_Fc")),
+        Effect("stribeck", "friction changes from its level at rest to its sliding level at low speed (Stribeck curve)", "velocity", _stribeck, _stribeck_ok),
         Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
-        Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _positive("m_load")),
+        Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants),
+        Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }

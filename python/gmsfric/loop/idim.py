@@ -19,7 +19,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
+from scipy import ndimage, signal
 
 from ..errors import IdentificationError
 from .data import AxisData
@@ -56,6 +56,23 @@ class Preprocessing:
         return float(fc), int(dec), edge
 
 
+#: Rows slower than this fraction of the run's speed scale (99th percentile of |qd|) are at rest.
+REST_FRACTION = 0.01
+
+
+def position_resolution(raw: Array, filtered: Array) -> float:
+    """Smallest position change the data resolve: the encoder step of a quantised position (the
+    smallest non-zero sample-to-sample change) or, when the position is noisy rather than
+    quantised, the noise level (robust spread of raw minus filtered position)."""
+    d = np.abs(np.diff(raw))
+    span = float(np.ptp(raw)) or 1.0
+    nz = d[d > 1e-12 * span]
+    step = float(np.percentile(nz, 1)) if nz.size else 0.0
+    hf = raw - filtered
+    noise = float(1.4826 * np.median(np.abs(hf - np.median(hf))))
+    return max(step, noise, 1e-12 * span)
+
+
 class Signals:
     """One run after preprocessing: full-rate filtered states and decimated regression rows.
 
@@ -68,9 +85,14 @@ class Signals:
         Decimated force rows (N): the regression target.
     rows : dict[str, ndarray]
         Decimated ``t``, ``q``, ``qd``, ``qdd`` aligned with ``y`` (for residual analysis).
+    moving : ndarray of bool
+        Rows where the axis moves (``|qd| >= rest_speed``); the others are standstill.
+    resolution : float
+        Position resolution (see :func:`position_resolution`).
     """
 
-    def __init__(self, data: AxisData, pre: Preprocessing = Preprocessing(), *, q_range: tuple[float, float] | None = None, t0: float | None = None) -> None:
+    def __init__(self, data: AxisData, pre: Preprocessing = Preprocessing(), *, q_range: tuple[float, float] | None = None, t0: float | None = None,
+                 rest_speed: float | None = None) -> None:
         self.data, self.pre = data, pre
         self.dt = data.dt
         self.fs = 1.0 / self.dt
@@ -95,6 +117,24 @@ class Signals:
         self.duration = float(self.t[-1])
         self.y = self.decimate(data.force)
         self.rows = {"t": self.decimate(self.t), "q": self.decimate(q), "qd": self.decimate(qd), "qdd": self.decimate(qdd)}
+        #: Position resolution (m or rad): the encoder step, or the noise of the raw position.
+        self.resolution = position_resolution(data.position, q)
+        #: Speed below which a row is at rest (the estimation run's threshold for a validation run).
+        self.rest_speed = float(rest_speed) if rest_speed is not None else REST_FRACTION * self.v_scale
+        # A sample is stuck when the measured position does not change by more than its
+        # resolution within one period of the velocity filter: the velocity is then zero as far
+        # as the data can tell, even where the filtered velocity rings (after a stop, at a
+        # reversal where the axis sticks while the force crosses the stiction band).
+        # The filtered velocity averages over about the same window, so the samples within it
+        # of a stop (before the axis starts, after it stops) have a velocity that blends motion
+        # and rest: they count as standstill too.
+        h = max(1, int(round(self.fs / (2.0 * self.cutoff))))
+        span = ndimage.maximum_filter1d(data.position, 2 * h + 1) - ndimage.minimum_filter1d(data.position, 2 * h + 1)
+        stuck = ndimage.maximum_filter1d((span <= 1.5 * self.resolution).astype(np.uint8), 2 * h + 1).astype(bool)
+        self.stuck = np.ascontiguousarray(stuck[self.edge : n - self.edge : self.dec][: self.n_rows])
+        #: Rows where the axis moves; at rest a stuck axis holds any force up to break-away
+        #: (set-valued stiction), which no regression column describes.
+        self.moving = (np.abs(self.rows["qd"]) >= self.rest_speed) & ~self.stuck
         self._cache: dict[tuple, Array] = {}
 
     def decimate(self, x: Array) -> Array:
@@ -130,7 +170,7 @@ class Term:
     hyper_names: tuple[str, ...] = ()
 
     def full(self, sig: Signals) -> Array:
-        return sig.cached(("full", self.name, self.hyper), lambda: np.atleast_2d(np.asarray(self.build(sig, self.hyper), dtype=float).T).T.reshape(sig.q.size, -1))
+        return sig.cached(("full", self.name, self.param_names, self.hyper), lambda: np.atleast_2d(np.asarray(self.build(sig, self.hyper), dtype=float).T).T.reshape(sig.q.size, -1))
 
     def with_hyper(self, hyper: tuple) -> "Term":
         return Term(self.name, self.param_names, self.build, tuple(hyper), self.hyper_names)
@@ -150,7 +190,7 @@ def _shift(x: Array, steps: float) -> Array:
 
 def term_rows(term: Term, sig: Signals, delay_steps: float = 0.0) -> Array:
     """Decimated regression rows of ``term`` on ``sig``, with the force delayed ``delay_steps`` samples."""
-    key = ("rows", term.name, term.hyper, round(delay_steps, 4))
+    key = ("rows", term.name, term.param_names, term.hyper, round(delay_steps, 4))
 
     def make() -> Array:
         return sig.decimate(_shift(term.full(sig), delay_steps))
@@ -240,11 +280,10 @@ class LinearModel:
         parts = {"inertia": "M qdd", "viscous": "Fv qd", "coulomb": "Fc sign(qd)", "offset": "offset"}
         body = " + ".join(parts.get(t.name, t.name) for t in self.terms)
         if self.delay:
-            hold = self.extras.get("sampling_hold_s")
-            if hold is not None and abs(self.delay - hold) < 1e-12:
-                body += f", force aligned half a sample later ({hold * 1e3:.3g} ms, sampling hold)"
-            else:
+            if "input_delay" in self.effects:
                 body += f", force delayed {self.delay * 1e3:.3g} ms"
+            else:
+                body += f", force aligned {self.delay * 1e3:.3g} ms later (sampling hold and timing within one sample)"
         return "f = " + body
 
 

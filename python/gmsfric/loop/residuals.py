@@ -13,7 +13,7 @@ variable            statistic                                    suggests
 ``velocity``        binned mean of r against qd                  stribeck, asymmetric_friction
 ``position``        binned mean of r against q                   position_dependent_force
 ``position_odd``    binned mean of r sign(qd) against q          position_dependent_friction
-``time``            binned mean of r sign(qd) against t          friction_drift
+``time``            binned mean of r sign(qd) against t          friction_drift, heating
 ``time_even``       binned mean of r against t                   (drift of a force, offset)
 ``acceleration``    binned mean of r against qdd                 compliance, inertia
 ``lag``             correlation of r with d(f_hat)/dt            input_delay
@@ -38,7 +38,7 @@ SUGGESTS = {
     "velocity": ["stribeck", "asymmetric_friction"],
     "position": ["position_dependent_force"],
     "position_odd": ["position_dependent_friction"],
-    "time": ["friction_drift"],
+    "time": ["friction_drift", "heating"],
     "time_even": ["friction_drift", "offset"],
     "acceleration": ["compliance"],
     "lag": ["input_delay"],

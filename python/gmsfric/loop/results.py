@@ -36,7 +36,8 @@ _PARAMETER_QUANTITIES = {
     "Fc": "force", "offset": "force", "Fs_minus_Fc": "force", "dF_moving": "force", "dFc_asym": "force", "dFc_drift": "force",
     "vs": "velocity",
     "stribeck_delta": "dimensionless", "zeta": "dimensionless", "drift_tau_over_T": "dimensionless",
-    "delay_s": "time", "sampling_hold_s": "time",
+    "delay_s": "time", "sampling_hold_s": "time", "heating_tau_s": "time",
+    "dFc_heating": "damping", "dFv_heating": "damping_per_velocity",
     "fn_hz": "frequency",
 }
 _PARAMETER_PATTERNS = (
@@ -139,6 +140,9 @@ class LoopResult(Result):
     closed_loop: dict[str, Any] = field(default_factory=dict)
     alignment: dict[str, Any] = field(default_factory=dict)
     closed_loop_runs: dict[tuple[str, str], "ClosedLoopResult"] = field(default_factory=dict, repr=False)
+    standstill: dict[str, Any] = field(default_factory=dict)
+    selection: dict[str, Any] = field(default_factory=dict)
+    timing: dict[str, Any] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict, repr=False)
     diagnostics: list[Any] = field(default_factory=list, repr=False)
 
@@ -175,6 +179,9 @@ class LoopResult(Result):
             "unexplained": self.unexplained,
             "residual_tests": {k: [f.as_dict() for f in v] for k, v in self.findings.items()},
             "closed_loop": self.closed_loop,
+            "standstill": self.standstill,
+            "selection": self.selection,
+            "timing": self.timing,
         }
 
     def axis_model(self) -> "AxisModel":
@@ -209,6 +216,7 @@ class LoopResult(Result):
 def format_table(result: "LoopResult") -> str:
     """Before/after table: baseline, every tested effect, final model, unexplained structure."""
     d = result._body()
+    rot = result.rotary
     lines = [f"estimation: {d['estimation']}    validation: {d['validation']}", ""]
     lines.append(f"{'step':<36}{'est %':>8}{'val %':>8}  decision")
     b = d["baseline"]
@@ -216,8 +224,20 @@ def format_table(result: "LoopResult") -> str:
     lines.append(f"{'baseline':<36}{b['estimation_error_pct']:>8.3f}{b['validation_error_pct']:>8.3f}")
     al = d.get("alignment") or {}
     for a in al.get("tests", []):
-        lines.append(f"  {'sampling hold (+' + format(al['sampling_hold_s'] * 1e3, '.3g') + ' ms), after r' + str(a['after_round']):<34}{a['estimation_error_pct']:>8.3f}{a['validation_error_pct']:>8.3f}  "
-                     f"{'APPLIED (alignment, not an effect)' if a['applied'] else 'not applied'} t = {a['t_heldout']}")
+        lines.append(f"  {'alignment +' + format(a['shift_s'] * 1e3, '.3g') + ' ms, after r' + str(a['after_round']):<34}{a['estimation_error_pct']:>8.3f}{a['validation_error_pct']:>8.3f}  "
+                     f"{'APPLIED (timing within a sample, not an effect)' if a['applied'] else 'not applied'} t = {a['t_heldout']}")
+    ss = d.get("standstill") or {}
+    if ss:
+        fu = _units.display_unit("velocity", rot)
+        v, shown = _units.to_display(ss["rest_speed"], "velocity", rot)
+        lines.append(f"  standstill (|qd| < {float(v):.3g} {shown}) left out of fits and tests: {ss['estimation_rows_at_rest_pct']:.1f} % of estimation rows, "
+                     f"{ss['validation_rows_at_rest_pct']:.1f} % of held-out rows")
+        del fu
+    tm = d.get("timing") or {}
+    for run, t in (tm.items() if "estimation" in tm else [("estimation", tm)]):
+        if t.get("resampled"):
+            lines.append(f"  {run} log resampled onto a uniform {t['median_step_s'] * 1e3:.4g} ms grid (steps from {t['min_step_s'] * 1e3:.4g} to "
+                         f"{t['max_step_s'] * 1e3:.4g} ms, {t['irregular_steps_pct']:.1f} % irregular)")
     for s in d["steps"]:
         e = "   n/a" if s["estimation_error_pct"] is None else f"{s['estimation_error_pct']:8.3f}"
         v = "   n/a" if s["validation_error_pct"] is None else f"{s['validation_error_pct']:8.3f}"

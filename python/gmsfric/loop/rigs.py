@@ -4,7 +4,7 @@ Each rig runs a cascade-controlled rigid axis (mass, drive gain, viscous + Coulo
 an offset: the loop's baseline structure) on a random smooth trajectory with a small chirp
 for excitation, with encoder quantisation and force-sensor noise, and plants at most one
 catalogue effect.  Effects the core simulates natively (Stribeck, GMS pre-sliding, input
-delay) are exact; the others act as a load force computed along the simulated trajectory and
+delay, heating) are exact; the others act as a load force computed along the simulated trajectory and
 iterated to a fixed point (the trajectory moves by nanometres between iterations).
 """
 
@@ -28,6 +28,7 @@ PLANTABLE = (
     "input_delay",
     "friction_drift",
     "compliance",
+    "heating",
 )
 
 
@@ -116,6 +117,8 @@ def simulate_rig(rig: Rig) -> AxisData:
         offset_force = offset_force  # GMS has no offset: it goes to the load
     else:
         fr = StaticFriction(Stribeck(rig.fc, rig.fc, 1.0), sigma=rig.fv, offset=rig.offset)
+    if rig.effect == "heating":
+        return _simulate_heating(rig, ref, fr, rng)
     load = offset_force if rig.effect == "presliding_hysteresis" else np.zeros(ref.size)
     extra = np.zeros(ref.size)
     for _ in range(4 if rig.effect in ("asymmetric_friction", "position_dependent_force", "position_dependent_friction", "friction_drift", "compliance") else 1):
@@ -128,6 +131,26 @@ def simulate_rig(rig: Rig) -> AxisData:
     idx = PLANTABLE.index(rig.effect) if rig.effect else -1
     return AxisData(t=res.t, position=res.measured, force=f, source=f"rig[{rig.effect or 'clean'}, seed {rig.seed}, {rig.fs:g} Hz]",
                     command=f / rig.gain, gain=rig.gain, reference=ref, meta={"planted": float(idx)})
+
+
+def _simulate_heating(rig: Rig, ref: np.ndarray, friction: StaticFriction, rng: np.random.Generator) -> AxisData:
+    """Friction that follows the recent motion, simulated in feedback by the core (an
+    :class:`~gmsfric.axis.AxisModel` with a heating effect).  The motion alternates between
+    brisk and gentle phases, so the heating is not a function of time alone (unlike a drift)."""
+    from ..axis import AxisModel, Effects, Heating
+
+    dt = 1.0 / rig.fs
+    t = np.arange(ref.size) * dt
+    envelope = 0.3 + 0.7 * np.sin(np.pi * t / (0.4 * rig.duration)) ** 2
+    ref = ref[0] + (ref - ref[0]) * envelope
+    v_typ = 0.1 * rig.travel / 0.15  # about the mean speed of the rig's trajectories
+    heat = Heating(tau=3.0, d_level=-0.5 * rig.strength * rig.fc / v_typ, d_viscous=-0.3 * rig.strength * rig.fv / v_typ)
+    axis = AxisModel(Plant.from_mass(rig.mass, force_gain=rig.gain), friction, Effects(heating=heat))
+    res = axis.simulate(dt, reference=ref, controller=rig.controller(), quantization=rig.quantization)
+    assert res.command is not None
+    f = rig.gain * res.command + rng.normal(0.0, rig.force_noise, ref.size)
+    return AxisData(t=res.t, position=res.measured, force=f, source=f"rig[heating, seed {rig.seed}, {rig.fs:g} Hz]",
+                    command=f / rig.gain, gain=rig.gain, reference=ref, meta={"planted": float(PLANTABLE.index("heating"))})
 
 
 def rig_pair(rig: Rig) -> tuple[AxisData, AxisData]:

@@ -1,35 +1,68 @@
-"""The identification loop: baseline, residual analysis, one effect at a time, held-out test.
+"""The identification loop: baseline, timing alignment, effects added while held-out data agree.
 
-Each round every applicable catalogue effect is fitted on the estimation rows (its nonlinear
-parameters chosen by blocked cross-validation *inside* the estimation rows), then ranked by
-that cross-validated gain.  The best-ranked effect that passes all three tests is added:
+The loop runs in named stages (:func:`run_loop`):
 
-1. held-out error drops by at least ``min_gain`` (relative);
-2. the drop is larger than noise would give: paired test over contiguous chunks of the held-out
-   rows, ``t = mean(d) / se(d) > t_threshold`` with ``d`` the per-chunk decrease of the squared
-   error;
-3. the Bayesian information criterion on the estimation rows decreases (grid-selected
-   nonlinear parameters count as parameters).
+1. **prepare** -- preprocess both runs, choose the held-out rows, and mark standstill: rows where
+   the axis is at rest carry a holding force anywhere up to break-away (set-valued stiction),
+   which no regression column describes.  They are left out of every fit and every decision;
+   errors are reported on all rows (the recipe's figure) and on the moving rows.
+2. **baseline** -- IDIM-LS fit of the baseline on the moving estimation rows, then the timing
+   alignment: the force shifted by a fraction of one sample, chosen by cross-validation and kept
+   when held-out data confirm it.  A command held over each sample acts half a sample after its
+   time stamp on average, and where in its sample a logger stamps it is unknown: timing within
+   one sample is a property of the sampling, not of the axis, and is not counted as an effect.
+3. **select** -- rounds of forward selection with backward elimination.  In a round every
+   applicable catalogue effect is fitted (its grid parameters chosen by blocked cross-validation
+   inside the estimation rows: the held-out rows never choose a variant) and tested on the
+   held-out rows against the current model:
 
-The loop stops when no effect passes.  Residual structure left at the end is reported as
-unexplained, with the variable it correlates with.
+   * a paired test over contiguous chunks of held-out rows of ``d = log(SSE_before/SSE_after)``,
+     with a heteroscedasticity- and autocorrelation-consistent (Newey-West) standard error, gives
+     a one-sided p-value (Student t);
+   * the false-effect rate is held across the catalogue and all rounds: round ``r`` spends
+     ``alpha / 2**r`` of the family-wise level, split equally (Bonferroni) over the ``K``
+     effects it tests, so an effect enters only with ``p <= alpha / (2**r K)``; the sum over
+     rounds stays below ``alpha``;
+   * the held-out error must also drop by ``min_gain`` (relative), the BIC on the estimation
+     rows must decrease, the effect's own parameters must be physical, and the baseline's
+     physical parameters must stay plausible: mass and effective viscous coefficient physical,
+     the effective Coulomb level (all friction terms projected on ``sign(qd)``, ``qd``) within a
+     factor ``max_parameter_ratio`` of the baseline's -- an effect may not buy its gain by
+     explaining the friction away.
+
+   Among the effects that pass, the one with the largest held-out gain enters (effects compete on
+   the same held-out rows).  Then every accepted effect's grid parameters and the alignment are
+   chosen again given the others (joint refit), and every earlier effect is tested again on the
+   held-out rows given all the others (backward elimination, kept only with ``p <= alpha`` and
+   the minimum gain): an effect that another one explains better leaves the model.
+4. **report** -- residual analysis of the final model; significant structure left is listed as
+   unexplained, with the variable it depends on.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
+from scipy import stats
 
 from .._progress import Progress
-from .._validate import finite, non_negative
+from .._validate import count, finite
 from ..errors import IdentificationError, InvalidInputError
 from .data import AxisData
 from .effects import CATALOGUE, Effect
-from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, relative_error
+from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
 from .residuals import Finding, analyse
 from .results import LoopResult, Step
+
+#: Fractions of one sample tried for the timing alignment.
+ALIGNMENT_GRID = np.round(np.linspace(0.0, 1.0, 11), 3)
+
+#: Terms whose force is friction (their sum is projected on ``Fc sign(qd) + Fv qd`` to follow the
+#: effective Coulomb and viscous levels of a model).
+FRICTION_TERMS = frozenset({"coulomb", "viscous", "stribeck", "asymmetric_friction", "presliding_hysteresis",
+                            "position_dependent_friction", "friction_drift", "heating"})
 
 
 @dataclass(frozen=True)
@@ -47,21 +80,30 @@ class LoopConfig:
         Catalogue effects to try (default: all of :data:`gmsfric.loop.CATALOGUE`).
     holdout_fraction : float
         Without a validation run: fraction of the estimation run held out, as interleaved
-        contiguous blocks.
+        contiguous blocks (between 0 and 1, exclusive).
     n_blocks : int
-        Number of blocks the run is cut into for that split.
+        Number of blocks the run is cut into for that split (>= 3).
     inner_folds : int
-        Folds of the blocked cross-validation on the estimation rows.
+        Folds of the blocked cross-validation on the estimation rows (>= 2).
+    alpha : float
+        Family-wise level of the held-out tests over the whole catalogue and all rounds: the
+        probability of adding at least one effect the data do not support, when the tests'
+        assumptions hold (between 0 and 0.5).
     t_threshold : float
-        Paired-chunk t statistic the held-out improvement must exceed.
+        Floor on the held-out t statistic, on top of the corrected level (>= 0).
     min_gain : float
-        Smallest relative decrease of the held-out error that counts (0.01 = 1 %).
+        Smallest relative decrease of the held-out error that counts (0.01 = 1 %; in [0, 1)).
+    max_parameter_ratio : float
+        An effect may change the baseline's effective Coulomb level by at most this factor either
+        way (> 1); the mass and viscous coefficient must stay physical.
+    rest_fraction : float
+        Rows slower than this fraction of the run's speed scale (99th percentile of ``|qd|``) are
+        standstill, left out of fits and tests (in [0, 0.5)).
     max_effects : int
-        Upper bound on the number of added effects.
+        Upper bound on the number of added effects (>= 0).
     sampling_hold : bool
-        Before the catalogue, try aligning the force half a sample later (a command held over
-        each sample acts, on average, half a sample after its time stamp).  Kept only when the
-        held-out data confirm it; reported under ``alignment``, not as an effect.
+        Try the timing alignment (the force shifted by up to one sample, nothing else fitted);
+        kept only when held-out data confirm it and reported under ``alignment``, not as an effect.
     seed : int
         Seed of the residual tests' surrogates.
     progress : bool
@@ -74,47 +116,96 @@ class LoopConfig:
     holdout_fraction: float = 0.3
     n_blocks: int = 10
     inner_folds: int = 5
+    alpha: float = 0.05
     t_threshold: float = 3.0
-    min_gain: float = 0.01
+    min_gain: float = 0.05
+    max_parameter_ratio: float = 2.0
+    rest_fraction: float = 0.01
     max_effects: int = 6
     sampling_hold: bool = True
     seed: int = 0
     progress: bool = True
 
     def __post_init__(self) -> None:
+        if not isinstance(self.preprocessing, Preprocessing):
+            raise InvalidInputError(f"`preprocessing` must be a Preprocessing, got {type(self.preprocessing).__name__}")
         f = finite("holdout_fraction", self.holdout_fraction)
         if not 0.0 < f < 1.0:
             raise InvalidInputError(f"`holdout_fraction` must be between 0 and 1 (exclusive), got {f}")
-        for name, low in (("n_blocks", 1), ("inner_folds", 2), ("max_effects", 0)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
-                raise InvalidInputError(f"`{name}` must be an integer >= {low}, got {v!r}")
-        finite("t_threshold", self.t_threshold)
-        non_negative("min_gain", self.min_gain)
+        for name, low in (("n_blocks", 3), ("inner_folds", 2), ("max_effects", 0), ("seed", 0)):
+            count(name, getattr(self, name), minimum=low)
+        a = finite("alpha", self.alpha)
+        if not 0.0 < a <= 0.5:
+            raise InvalidInputError(f"`alpha` must be in (0, 0.5], got {a}")
+        if finite("t_threshold", self.t_threshold) < 0:
+            raise InvalidInputError(f"`t_threshold` must be >= 0, got {self.t_threshold}")
+        g = finite("min_gain", self.min_gain)
+        if not 0.0 <= g < 1.0:
+            raise InvalidInputError(f"`min_gain` must be in [0, 1), got {g}")
+        if finite("max_parameter_ratio", self.max_parameter_ratio) <= 1.0:
+            raise InvalidInputError(f"`max_parameter_ratio` must be > 1, got {self.max_parameter_ratio}")
+        rf = finite("rest_fraction", self.rest_fraction)
+        if not 0.0 <= rf < 0.5:
+            raise InvalidInputError(f"`rest_fraction` must be in [0, 0.5), got {rf}")
+        if isinstance(self.baseline, str) or not all(isinstance(b, str) for b in self.baseline):
+            raise InvalidInputError(f"`baseline` must be a sequence of term names, got {self.baseline!r}")
+        unknown = [b for b in self.baseline if b not in BASE_TERMS]
+        if unknown or not self.baseline:
+            raise InvalidInputError(f"`baseline` has unknown term(s) {unknown}; use {', '.join(BASE_TERMS)}" if unknown else "`baseline` is empty")
+        if self.effects is not None:
+            if isinstance(self.effects, str) or not all(isinstance(e, str) for e in self.effects):
+                raise InvalidInputError(f"`effects` must be a sequence of catalogue names, got {self.effects!r}")
+            unknown = [e for e in self.effects if e not in CATALOGUE]
+            if unknown:
+                raise InvalidInputError(f"`effects` has unknown effect(s) {unknown}; catalogue: {', '.join(CATALOGUE)}")
+
+    def level(self, rnd: int, n_tests: int) -> float:
+        """Per-test level of round ``rnd`` (1-based) with ``n_tests`` candidates."""
+        return self.alpha * 0.5**rnd / max(n_tests, 1)
 
 
 @dataclass
 class Split:
-    """Estimation and held-out rows: ``(signals, row mask)`` each."""
+    """Estimation and held-out rows: ``(signals, row mask)`` each, and the moving rows of both
+    that fits (``est_fit``) and tests (``val_test``) use."""
 
     est: Signals
     est_rows: Array
     val: Signals
     val_rows: Array
     holdout: str
+    est_fit: Array = field(default=None)  # type: ignore[assignment]
+    val_test: Array = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.est_fit is None:
+            self.est_fit = self.est_rows & self.est.moving
+        if self.val_test is None:
+            self.val_test = self.val_rows & self.val.moving
 
     def errors(self, m: LinearModel) -> tuple[float, float]:
+        """Estimation and held-out errors (%) on all rows (standstill included)."""
         e = relative_error(self.est.y[self.est_rows], m.predict(self.est)[self.est_rows])
         v = relative_error(self.val.y[self.val_rows], m.predict(self.val)[self.val_rows])
         return e, v
 
+    def errors_moving(self, m: LinearModel) -> tuple[float, float]:
+        """Estimation and held-out errors (%) on the moving rows (the ones the loop fits and tests)."""
+        e = relative_error(self.est.y[self.est_fit], m.predict(self.est)[self.est_fit])
+        v = relative_error(self.val.y[self.val_test], m.predict(self.val)[self.val_test])
+        return e, v
+
 
 def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
-    """Preprocess the runs and choose the held-out rows (a validation run, or interleaved
-    blocks of the estimation run)."""
+    """Preprocess the runs, choose the held-out rows (a validation run, or interleaved blocks of
+    the estimation run) and mark standstill rows (the estimation run's speed threshold for both)."""
     s = Signals(est, cfg.preprocessing)
+    rest = cfg.rest_fraction * s.v_scale
+    if rest != s.rest_speed:
+        s.rest_speed = rest
+        s.moving = (np.abs(s.rows["qd"]) >= rest) & ~s.stuck
     if val is not None:
-        v = Signals(val, cfg.preprocessing, q_range=s.q_range)
+        v = Signals(val, cfg.preprocessing, q_range=s.q_range, rest_speed=rest)
         return Split(s, np.ones(s.n_rows, bool), v, np.ones(v.n_rows, bool), val.source)
     n = s.n_rows
     nb = max(3, cfg.n_blocks)
@@ -123,6 +214,10 @@ def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
     val_blocks = np.round(np.linspace(1, nb - 2, n_val)).astype(int) if n_val < nb - 1 else np.arange(1, nb, 2)
     val_mask = np.isin(block, val_blocks)
     return Split(s, ~val_mask, s, val_mask, f"{est.source} (held-out blocks {', '.join(str(b + 1) for b in val_blocks)} of {nb})")
+
+
+# ------------------------------------------------------------------------------------------
+# Statistics
 
 
 def _cv_sse(X: Array, y: Array, folds: int) -> float:
@@ -139,7 +234,9 @@ def _cv_sse(X: Array, y: Array, folds: int) -> float:
     sse = 0.0
     for k in range(folds):
         A = GT - G[k][0] + ridge * np.eye(GT.shape[0])
-        theta = np.linalg.lstsq(A, bT - G[k][1], rcond=None)[0] if not np.all(np.isfinite(A)) else _solve(A, bT - G[k][1])
+        if not np.all(np.isfinite(A)):
+            raise np.linalg.LinAlgError("non-finite normal equations")
+        theta = _solve(A, bT - G[k][1])
         r = y[idx == k] - Xs[idx == k] @ theta
         sse += float(r @ r)
     return sse
@@ -152,27 +249,465 @@ def _solve(A: Array, b: Array) -> Array:
         return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-def _chunk_t(r0: Array, r1: Array, chunk: int) -> float:
-    """Paired t statistic of ``log(SSE_before / SSE_after)`` over contiguous chunks.
+@dataclass
+class HeldOut:
+    """A paired held-out comparison of two models."""
 
-    The log ratio is scale-free, so a few chunks with large forces (reversals, pulses) do not
-    swamp the others; under "no improvement" its mean is zero (or below, for overfitted
-    effects)."""
+    t: float
+    p: float
+    gain: float
+    chunks: int
+    error_before: float
+    error_after: float
+
+
+def paired_chunk_test(r0: Array, r1: Array, chunk: int) -> tuple[float, float, int]:
+    """One-sided test that ``r1`` is smaller than ``r0``: per contiguous chunk the normalised
+    decrease of the squared error ``d = (SSE0 - SSE1) / (SSE0 + SSE1)``, its mean over a
+    Newey-West standard error (the chunks' own autocorrelation counted), p-value from Student's
+    t with ``m - 1`` degrees of freedom.
+
+    ``d`` is scale-free and bounded (-1 to 1): every chunk weighs the same, a few chunks with
+    large forces (reversals, pulses) do not swamp the others, and a chunk where both errors are
+    small noise cannot produce an outlier.  For an effect fitted on other data and useless here
+    its mean is zero or below.  Returns ``(t, p, m)``."""
     m = max(2, r0.size // chunk)
     c = r0.size // m
     a = (r0[: m * c] ** 2).reshape(m, c).sum(axis=1)
     b = (r1[: m * c] ** 2).reshape(m, c).sum(axis=1)
-    d = np.log((a + 1e-300) / (b + 1e-300))
-    sd = d.std(ddof=1)
-    if sd == 0:
-        return float(np.sign(d.mean()) * np.inf) if d.mean() else 0.0
-    return float(d.mean() / (sd / np.sqrt(m)))
+    d = (a - b) / np.maximum(a + b, 1e-300)
+    mean = float(d.mean())
+    dc = d - mean
+    g0 = float(dc @ dc) / m
+    lags = int(np.floor(m ** (1.0 / 3.0)))
+    lrv = g0 + 2.0 * sum((1.0 - k / (lags + 1.0)) * float(dc[k:] @ dc[:-k]) / m for k in range(1, min(lags, m - 1) + 1))
+    var = max(lrv, g0) / (m - 1)  # negative autocorrelation would shrink the error: never below the i.i.d. one
+    if var <= 0:
+        t = float(np.sign(mean) * np.inf) if mean else 0.0
+    else:
+        t = mean / float(np.sqrt(var))
+    p = float(stats.t.sf(t, m - 1)) if np.isfinite(t) else (0.0 if t > 0 else 1.0)
+    return float(t), p, m
 
 
-def _evaluate(split: Split, m: LinearModel, cfg: LoopConfig) -> tuple[float, float]:
-    """Blocked CV SSE on estimation rows, and the number of rows."""
-    X = m.X(split.est)[split.est_rows]
-    return _cv_sse(X, split.est.y[split.est_rows], cfg.inner_folds), float(X.shape[0])
+def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int) -> HeldOut:
+    """Compare two fitted models on the moving held-out rows."""
+    rows = split.val_test
+    y = split.val.y[rows]
+    r0 = y - before.predict(split.val)[rows]
+    r1 = y - after.predict(split.val)[rows]
+    t, p, m = paired_chunk_test(r0, r1, chunk)
+    e0, e1 = relative_error(y, y - r0), relative_error(y, y - r1)
+    return HeldOut(t, p, 1.0 - e1 / e0 if e0 > 0 else 0.0, m, e0, e1)
+
+
+# ------------------------------------------------------------------------------------------
+# Models
+
+
+def _fit(m: LinearModel, split: Split) -> LinearModel:
+    return m.fit(split.est, split.est_fit)
+
+
+def _cv(m: LinearModel, split: Split, cfg: LoopConfig) -> float:
+    """Blocked cross-validated SSE on the moving estimation rows."""
+    X = m.X(split.est)[split.est_fit]
+    return _cv_sse(X, split.est.y[split.est_fit], cfg.inner_folds)
+
+
+def _sse(m: LinearModel, split: Split) -> float:
+    r = (split.est.y - m.predict(split.est))[split.est_fit]
+    return float(r @ r)
+
+
+def _with_delay(m: LinearModel, delay: float, dt: float) -> LinearModel:
+    out = m.copy()
+    out.delay = float(delay)
+    out.extras.pop("sampling_hold_s", None)
+    if delay > 0:
+        # what the core's zero-order hold already simulates: the axis model's delay is the rest
+        out.extras["sampling_hold_s"] = 0.5 * dt
+    return out
+
+
+def _without(m: LinearModel, effect: str, dt: float) -> LinearModel:
+    """``m`` without one of its effects (unfitted); without ``input_delay`` the force is not shifted."""
+    if effect == "input_delay":
+        out = _with_delay(m, 0.0, dt)
+    else:
+        out = m.copy()
+        out.terms = [t for t in out.terms if t.name != effect]
+    out.effects = [e for e in out.effects if e != effect]
+    return out
+
+
+def _replace_term(m: LinearModel, term: Term) -> LinearModel:
+    out = m.copy()
+    out.terms = [term if t.name == term.name else t for t in out.terms]
+    return out
+
+
+def baseline_physics(m: LinearModel, split: Split) -> dict[str, float]:
+    """The baseline's physical parameters as ``m`` has them: the mass, the viscous coefficient,
+    and the Coulomb level its whole friction amounts to (every friction term's force projected,
+    on the moving estimation rows, on ``sign(qd)`` and ``qd``): a Stribeck curve, blocks, a drift
+    or heating change how the friction is split, not how large it is."""
+    S, rows = split.est, split.est_fit
+    assert m.theta is not None
+    theta = dict(zip(m.param_names, m.theta))
+    out: dict[str, float] = {}
+    if "M" in theta:
+        out["M"] = float(theta["M"])
+    if "Fv" in theta:
+        out["Fv"] = float(theta["Fv"])
+    names = [t.name for t in m.terms]
+    if "coulomb" in names and "viscous" in names:
+        steps = m.delay / S.dt
+        fric = np.zeros(S.n_rows)
+        k = 0
+        for t in m.terms:
+            n = len(t.param_names)
+            if t.name in FRICTION_TERMS:
+                fric += term_rows(t, S, steps) @ m.theta[k : k + n]
+            k += n
+        B = np.column_stack([term_rows(BASE_TERMS["coulomb"], S, steps), term_rows(BASE_TERMS["viscous"], S, steps)])[rows]
+        c = np.linalg.lstsq(B, fric[rows], rcond=None)[0]
+        out["Fc"] = float(c[0])
+    return out
+
+
+def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: LinearModel, split: Split, cfg: LoopConfig) -> tuple[dict[str, Any], str | None]:
+    """Baseline parameters before (the baseline's) and with this step, and why they are
+    implausible (``None`` when they are not).
+
+    The mass and the viscous coefficient must stay physical (positive, or not significantly
+    negative).  They may move a lot: the baseline absorbs whatever a missing effect correlates
+    with (a spring ``k q`` looks like ``-k/w^2 qdd`` on an oscillation, a delay shifts force onto
+    ``qdd`` and ``qd``), and the right effect gives it back.  The Coulomb level is what the axis
+    slides at, a level every trajectory shows: an effect that changes the effective level by more
+    than ``max_parameter_ratio`` (either way) explains friction away instead of adding to it."""
+    now = baseline_physics(m, split)
+    report: dict[str, Any] = {}
+    why = None
+    for k, b in base_phys.items():
+        a = now.get(k, float("nan"))
+        ratio = a / b if b else float("nan")
+        report[k] = {"baseline": float(f"{b:.6g}"), "with_step": float(f"{a:.6g}"), "ratio": round(ratio, 4) if np.isfinite(ratio) else None}
+        if why is not None or not np.isfinite(a):
+            continue
+        sd = base_std.get(k, 0.0)
+        if k == "M" and a <= 0:
+            why = f"implausible baseline: the mass becomes {a:.4g} (not positive)"
+        elif k == "Fv" and a < -3.0 * sd:
+            why = f"implausible baseline: the viscous coefficient becomes {a:.4g} (negative)"
+        elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and not 1.0 / cfg.max_parameter_ratio <= ratio <= cfg.max_parameter_ratio:
+            why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, beyond a factor {cfg.max_parameter_ratio:g})"
+    return report, why
+
+
+# ------------------------------------------------------------------------------------------
+# Stages
+
+
+@dataclass
+class _State:
+    """What the stages hand on: the current model, its errors, steps and findings."""
+
+    split: Split
+    chunk: int
+    base: LinearModel
+    base_err: tuple[float, float]
+    base_phys: dict[str, float]
+    base_std: dict[str, float]
+    model: LinearModel
+    err: tuple[float, float]
+    alignment: dict[str, Any]
+    steps: list[Step] = field(default_factory=list)
+    findings: dict[str, list[Finding]] = field(default_factory=dict)
+    tests: int = 0
+
+
+def _check_names(cfg: LoopConfig) -> list[str]:
+    return list(cfg.effects) if cfg.effects is not None else list(CATALOGUE)
+
+
+def stage_prepare(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> tuple[Split, int]:
+    """Stage 1: preprocessing, held-out rows, standstill; the held-out test's chunk length."""
+    split = make_split(est, val, cfg)
+    for name, rows in (("estimation", split.est_fit), ("held-out", split.val_test)):
+        if rows.sum() < 50:
+            raise IdentificationError(f"{split.est.data.source}: only {int(rows.sum())} moving {name} rows; the axis barely moves")
+    S = split.est
+    # Chunks of about a second: long against the residual's correlation time (the chunks' means
+    # are then nearly independent and the log ratio of a chunk is not the ratio of two noise
+    # samples), and 20 to 60 of them for the t statistic.
+    n = int(split.val_test.sum())
+    chunk = int(np.clip(round(1.0 / (S.dt * S.dec)), n // 60, n // 20))
+    return split, max(chunk, 10)
+
+
+def _align(model: LinearModel, split: Split, cfg: LoopConfig, st_align: dict[str, Any], after_round: int, chunk: int) -> LinearModel:
+    """The timing alignment of ``model`` (fitted): a shift of the force within one sample, chosen
+    by cross-validation on the estimation rows, kept when the held-out rows confirm it."""
+    if not cfg.sampling_hold or "input_delay" in model.effects:
+        return model
+    dt = split.est.dt
+    best: tuple[float, LinearModel] | None = None
+    for f in ALIGNMENT_GRID:
+        m = _with_delay(model, f * dt, dt)
+        try:
+            cv = _cv(m, split, cfg)
+        except np.linalg.LinAlgError:
+            continue
+        if best is None or cv < best[0]:
+            best = (cv, m)
+    unshifted = _fit(_with_delay(model, 0.0, dt), split)
+    shifted = _fit(best[1], split) if best is not None else unshifted
+    h = heldout(split, unshifted, shifted, chunk) if shifted.delay > 0 else None
+    applied = h is not None and h.p <= cfg.alpha and h.t >= cfg.t_threshold
+    chosen = shifted if applied else unshifted
+    e = split.errors(shifted)
+    st_align["tests"].append({"after_round": after_round, "shift_s": round(float(shifted.delay), 9),
+                              "t_heldout": round(h.t, 2) if h else None, "p_heldout": float(f"{h.p:.3g}") if h else None,
+                              "estimation_error_pct": round(e[0], 4), "validation_error_pct": round(e[1], 4), "applied": bool(applied)})
+    st_align["applied"] = bool(applied)
+    st_align["shift_s"] = float(chosen.delay)
+    return chosen
+
+
+def stage_baseline(split: Split, chunk: int, cfg: LoopConfig) -> _State:
+    """Stage 2: the baseline on the moving estimation rows, then the timing alignment."""
+    S = split.est
+    base = _fit(LinearModel([BASE_TERMS[b] for b in cfg.baseline]), split)
+    base_err = split.errors(base)
+    p = base.params()
+    phys = baseline_physics(base, split)
+    std = {k: p[k]["std"] for k in ("M", "Fc", "Fv") if k in p}
+    alignment: dict[str, Any] = {}
+    if cfg.sampling_hold:
+        alignment = {"sampling_hold_s": 0.5 * S.dt, "applied": False, "shift_s": 0.0,
+                     "rule": "force shifted by 0 to 1 sample (grid of 0.1 sample, chosen by cross-validation on the estimation rows), "
+                             "kept when the held-out test confirms it; the core simulates half a sample (its hold), the rest is the axis model's delay",
+                     "tests": []}
+    st = _State(split, chunk, base, base_err, phys, std, base, base_err, alignment)
+    st.model = _align(base, split, cfg, alignment, 0, chunk)
+    st.err = split.errors(st.model)
+    return st
+
+
+def _residual_rows(st: _State, cfg: LoopConfig) -> tuple[dict[str, Finding], Array]:
+    S, rows = st.split.est, st.split.est_fit
+    y_hat = st.model.predict(S)
+    r = S.y - y_hat
+    fnd = {f.variable: f for f in _analyse_rows(S, rows, r, y_hat, cfg.seed)}
+    return fnd, np.where(rows, r, np.nan)
+
+
+def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, r_est: Array, prog: Progress | None = None) -> tuple[LinearModel | None, float, str | None]:
+    """The effect's variant with the smallest cross-validated error on the estimation rows (only
+    physically valid fits), its CV SSE, and why the last invalid one was refused."""
+    best: tuple[float, LinearModel] | None = None
+    why: str | None = None
+    for m in eff.variants(model, st.split.est, r_est):
+        try:
+            if eff.physical is not None:
+                w = eff.check(_fit(m, st.split))
+                if w is not None:
+                    why = w
+                    continue
+            cv = _cv(m, st.split, cfg)
+        except (IdentificationError, np.linalg.LinAlgError, ValueError):
+            continue
+        if best is None or cv < best[0]:
+            best = (cv, m)
+        if prog is not None:
+            prog.update(note=f"{eff.name}")
+    return (best[1], best[0], why) if best is not None else (None, float("nan"), why)
+
+
+def _joint_refit(st: _State, cfg: LoopConfig, rnd: int) -> None:
+    """Choose every accepted effect's grid parameters again given the others (one pass, in the
+    order they entered), then the timing alignment."""
+    split, dt = st.split, st.split.est.dt
+    model = st.model
+    for name in list(model.effects):
+        if name == "input_delay":
+            reduced = _without(model, name, dt)
+        else:
+            reduced = model.copy()
+            reduced.terms = [t for t in model.terms if t.name != name]
+        reduced = _fit(reduced, split)
+        r = split.est.y - reduced.predict(split.est)
+        variants = CATALOGUE[name].variants(reduced, split.est, np.where(split.est_fit, r, np.nan))
+        if len(variants) < 2:
+            continue
+        cur_cv = _cv(model, split, cfg)
+        eff = CATALOGUE[name]
+        for v in variants:
+            cand = _with_delay(model, v.delay, dt) if name == "input_delay" else _replace_term(model, next(t for t in v.terms if t.name == name))
+            try:
+                if eff.physical is not None and eff.check(_fit(cand, split)) is not None:
+                    continue
+                cv = _cv(cand, split, cfg)
+            except (IdentificationError, np.linalg.LinAlgError, ValueError):
+                continue
+            if cv < cur_cv:
+                cur_cv, model = cv, cand
+    model = _fit(model, split)
+    st.model = _align(model, split, cfg, st.alignment, rnd, st.chunk) if st.alignment else model
+    st.err = split.errors(st.model)
+
+
+def _backward(st: _State, cfg: LoopConfig, rnd: int, newest: str) -> None:
+    """Test every earlier effect again given all the others; one that no longer earns its place
+    (``p > alpha`` or less than the minimum gain on the held-out rows) leaves the model."""
+    split, dt = st.split, st.split.est.dt
+    changed = True
+    while changed:
+        changed = False
+        for name in [e for e in st.model.effects if e != newest]:
+            reduced = _fit(_without(st.model, name, dt), split)
+            if st.alignment and name == "input_delay":
+                reduced = _align(reduced, split, cfg, st.alignment, rnd, st.chunk)
+            h = heldout(split, reduced, st.model, st.chunk)
+            if h.p <= cfg.alpha and h.gain >= cfg.min_gain:
+                continue
+            for s in st.steps:
+                if s.accepted and s.effect == name:
+                    s.accepted = False
+                    s.evidence["removed_in_round"] = rnd
+                    s.reason += (f"; removed in round {rnd}: given the others (with {newest}) its held-out gain is "
+                                 f"{100 * h.gain:.2f} % (t = {h.t:.2f}, p = {h.p:.2g})")
+            st.model = reduced
+            st.err = split.errors(reduced)
+            changed = True
+            break
+
+
+def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
+    """Stage 3: rounds of forward selection (corrected held-out test, competition on the same
+    held-out rows), joint refit and backward elimination."""
+    split = st.split
+    n_est = int(split.est_fit.sum())
+    rnd = 0
+    with Progress("gmsfric loop", enabled=cfg.progress) as prog:
+        while len(st.model.effects) < cfg.max_effects:
+            rnd += 1
+            fnd, r_est = _residual_rows(st, cfg)
+            if rnd == 1:
+                st.findings["baseline_estimation"] = list(fnd.values())
+            cv_cur = _cv(st.model, split, cfg)
+            sse_cur = _sse(st.model, split)
+            cands: list[tuple[float, Effect, LinearModel]] = []
+            applicable = [CATALOGUE[n] for n in names if CATALOGUE[n].applicable(st.model)]
+            for eff in applicable:
+                prog.update(note=f"round {rnd}: {eff.name}")
+                m, cv, why = _best_variant(eff, st.model, st, cfg, r_est, prog)
+                if m is not None:
+                    cands.append((1.0 - cv / cv_cur, eff, m))
+                elif why is not None:
+                    f = fnd.get(eff.evidence)
+                    ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
+                    st.steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
+            level = cfg.level(rnd, len(applicable))
+            passing: list[tuple[float, Step, LinearModel]] = []
+            for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
+                _fit(m, split)
+                e_est, e_val = split.errors(m)
+                h = heldout(split, st.model, m, st.chunk)
+                dbic = n_est * np.log(_sse(m, split) / sse_cur) + (m.n_params - st.model.n_params) * np.log(n_est)
+                change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
+                ev: dict[str, Any] = {}
+                f = fnd.get(eff.evidence)
+                if f is not None:
+                    ev["residual_test"] = f.as_dict()
+                ev.update(cv_gain=round(gain_cv, 5), validation_gain=round(h.gain, 5),
+                          moving_rows_error_pct={"estimation": round(split.errors_moving(m)[0], 4), "validation": round(h.error_after, 4)},
+                          t_heldout=round(h.t, 2), p_heldout=float(f"{h.p:.3g}"),
+                          level=float(f"{level:.3g}"), delta_bic=round(float(dbic), 1), baseline_parameters=change)
+                reasons = []
+                if gain_cv <= 0:
+                    reasons.append("no cross-validated gain on estimation data")
+                if h.gain < cfg.min_gain:
+                    reasons.append(f"held-out error gain {100 * h.gain:.2f} % < {100 * cfg.min_gain:.2f} %")
+                if h.p > level or h.t < cfg.t_threshold:
+                    reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {level:.2g})" if h.p > level
+                                   else f"held-out t = {h.t:.2f} < {cfg.t_threshold}")
+                if dbic >= 0:
+                    reasons.append(f"BIC does not decrease ({dbic:+.1f})")
+                if implausible is not None:
+                    reasons.append(implausible)
+                step = Step(rnd, eff.name, False, "; ".join(reasons), ev, e_est, e_val, m.params(), m)
+                st.steps.append(step)
+                if not reasons:
+                    passing.append((h.gain, step, m))
+            if not passing:
+                break
+            passing.sort(key=lambda c: -c[0])
+            _, step, m = passing[0]
+            step.accepted = True
+            mv = step.evidence["moving_rows_error_pct"]["validation"]
+            step.reason = (f"held-out error {mv / (1.0 - step.evidence['validation_gain']):.3f} -> {mv:.3f} % on moving rows (t = {step.evidence['t_heldout']:.1f}, "
+                           f"p = {step.evidence['p_heldout']:.2g} <= {level:.2g}), BIC {step.evidence['delta_bic']:+.1f}")
+            for _, other, _ in passing[1:]:
+                other.reason = f"passes, but {step.effect} gains more on the same held-out rows this round"
+            st.model = m
+            st.err = split.errors(m)
+            _joint_refit(st, cfg, rnd)
+            _backward(st, cfg, rnd, step.effect)
+            step.parameters = st.model.params() if step.effect in st.model.effects else step.parameters
+
+
+def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
+    """Stage 4: residual analysis of the final model, unexplained structure, the result."""
+    split = st.split
+    S, rows = split.est, split.est_fit
+    y_hat = st.model.predict(S)
+    r = S.y - y_hat
+    final_f = _analyse_rows(S, rows, r, y_hat, cfg.seed)
+    st.findings["final_estimation"] = final_f
+    unexplained = []
+    for f in final_f:
+        if f.significant:
+            tried = [e for e in f.suggests if e in names]
+            unexplained.append({"variable": f.variable, "run": "estimation", "z": round(f.z, 1), "statistic": round(f.statistic, 5),
+                                "candidates_tried": tried, "note": "residual still depends on " + f.variable + "; no catalogue effect reduced the held-out error enough",
+                                **{k: v for k, v in f.detail.items()}})
+    if split.val is not split.est:
+        V, vrows = split.val, split.val_test
+        yv = st.model.predict(V)
+        fv = _analyse_rows(V, vrows, V.y - yv, yv, cfg.seed)
+        st.findings["final_validation"] = fv
+        for f in fv:
+            if f.significant:
+                unexplained.append({"variable": f.variable, "run": "validation", "z": round(f.z, 1), "statistic": round(f.statistic, 5),
+                                    "candidates_tried": [e for e in f.suggests if e in names], "note": "structure in the held-out run's residual", **{k: v for k, v in f.detail.items()}})
+    res = LoopResult(split, st.base, st.base_err, st.steps, st.model, st.err, unexplained, st.findings, alignment=st.alignment)
+    be, bv = split.errors_moving(st.base)
+    fe, fv_ = split.errors_moving(st.model)
+    rot = res.rotary
+    res.standstill = {
+        "rule": "rows slower than rest_fraction x the estimation run's 99th-percentile speed are standstill (set-valued stiction: "
+                "a stuck axis holds any force up to break-away); they are left out of every fit and test",
+        "rest_fraction": cfg.rest_fraction,
+        "rest_speed": float(f"{S.rest_speed:.6g}"), "rest_speed_unit": "rad/s" if rot else "m/s",
+        "estimation_rows_at_rest_pct": round(100.0 * float(1.0 - split.est_fit.sum() / max(split.est_rows.sum(), 1)), 2),
+        "validation_rows_at_rest_pct": round(100.0 * float(1.0 - split.val_test.sum() / max(split.val_rows.sum(), 1)), 2),
+        "baseline_moving_rows_error_pct": {"estimation": round(be, 4), "validation": round(bv, 4)},
+        "final_moving_rows_error_pct": {"estimation": round(fe, 4), "validation": round(fv_, 4)},
+    }
+    res.selection = {
+        "rule": "forward selection; an effect enters when its held-out chunk test (Newey-West t) has p <= alpha / (2**round x effects tested), "
+                "its held-out gain >= min_gain, BIC decreases and the baseline parameters stay plausible; the best held-out gain enters; "
+                "then joint refit of every accepted effect's grid parameters and backward elimination (stay with p <= alpha)",
+        "alpha": cfg.alpha, "t_threshold": cfg.t_threshold, "min_gain": cfg.min_gain, "max_parameter_ratio": cfg.max_parameter_ratio,
+        "chunk_rows": st.chunk,
+    }
+    timing = dict(getattr(S.data, "timing", {}) or {})
+    if split.val is not split.est:
+        timing = {"estimation": timing, "validation": dict(getattr(split.val.data, "timing", {}) or {})}
+    res.timing = timing
+    return res
 
 
 def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | None = None) -> LoopResult:
@@ -190,148 +725,17 @@ def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | No
     -------
     LoopResult
         Baseline, steps, final model, errors (``100 ||f - f_hat|| / ||f||`` on the decimated
-        force rows), unexplained residual structure and the residual tests.
+        force rows; on the moving rows under ``standstill``), unexplained residual structure and
+        the residual tests.
     """
     cfg = config or LoopConfig()
-    names = list(cfg.effects) if cfg.effects is not None else list(CATALOGUE)
-    unknown = [n for n in names if n not in CATALOGUE]
-    if unknown:
-        raise IdentificationError(f"unknown effect(s) {unknown}; catalogue: {', '.join(CATALOGUE)}")
-    for b in cfg.baseline:
-        if b not in BASE_TERMS:
-            raise IdentificationError(f"unknown baseline term {b!r}; use {', '.join(BASE_TERMS)}")
-    split = make_split(est, val, cfg)
-    S, er = split.est, split.est_rows
-    n_est = int(er.sum())
-    chunk = max(10, int(round(0.25 / (S.dt * S.dec))))  # ~0.25 s of rows per chunk
-    chunk = min(chunk, max(10, int(split.val_rows.sum()) // 24))
-
-    base = LinearModel([BASE_TERMS[b] for b in cfg.baseline]).fit(S, er)
-    base_err = split.errors(base)
-    current = base
-    cur_err = base_err
-    alignment: dict[str, Any] = {"sampling_hold_s": 0.5 * S.dt, "applied": False, "tests": []} if cfg.sampling_hold else {}
-
-    def try_hold(cur: LinearModel, cur_e: tuple[float, float], rnd: int) -> tuple[LinearModel, tuple[float, float]]:
-        # A force recorded as a command held over [t_k, t_k+1) acts, on average, half a sample
-        # after its time stamp: a property of the sampling, not of the axis (nothing fitted).
-        # Tested again after every added effect: a large effect can hide it at first.
-        if not cfg.sampling_hold or alignment["applied"] or cur.delay:
-            return cur, cur_e
-        held = cur.copy()
-        held.theta = None
-        held.delay = 0.5 * S.dt
-        held.fit(S, er)
-        e_h = split.errors(held)
-        r0 = (split.val.y - cur.predict(split.val))[split.val_rows]
-        r1 = (split.val.y - held.predict(split.val))[split.val_rows]
-        t_h = _chunk_t(r0, r1, chunk)
-        ok_h = t_h >= cfg.t_threshold and 1.0 - e_h[1] / cur_e[1] >= cfg.min_gain
-        alignment["tests"].append({"after_round": rnd, "t_heldout": round(t_h, 2), "estimation_error_pct": round(e_h[0], 4), "validation_error_pct": round(e_h[1], 4), "applied": bool(ok_h)})
-        if ok_h:
-            alignment["applied"] = True
-            held.extras["sampling_hold_s"] = 0.5 * S.dt
-            return held, e_h
-        return cur, cur_e
-
-    current, cur_err = try_hold(current, cur_err, 0)
-    steps: list[Step] = []
-    findings: dict[str, list[Finding]] = {}
-    rnd = 0
-    with Progress("gmsfric loop", enabled=cfg.progress) as prog:
-        while len(current.effects) < cfg.max_effects:
-            rnd += 1
-            y_hat = current.predict(S)
-            r = S.y - y_hat
-            fnd = {f.variable: f for f in _analyse_rows(S, er, r, y_hat, cfg.seed)}
-            r_est = np.where(er, r, np.nan)
-            if rnd == 1:
-                findings["baseline_estimation"] = list(fnd.values())
-            cv_cur, _ = _evaluate(split, current, cfg)
-            sse_cur = float(((S.y - current.predict(S))[er] ** 2).sum())
-            cands: list[tuple[float, Effect, LinearModel]] = []
-            for eff in (CATALOGUE[n] for n in names):
-                if not eff.applicable(current):
-                    continue
-                best: tuple[float, LinearModel] | None = None
-                why: str | None = None
-                for m in eff.variants(current, S, r_est):
-                    try:
-                        if eff.physical is not None:
-                            why = eff.check(m.fit(S, er))
-                            if why is not None:
-                                continue
-                        cv, _ = _evaluate(split, m, cfg)
-                    except (IdentificationError, np.linalg.LinAlgError, ValueError):
-                        continue
-                    if best is None or cv < best[0]:
-                        best = (cv, m)
-                    prog.update(note=f"round {rnd}: {eff.name}")
-                if best is not None:
-                    cands.append((1.0 - best[0] / cv_cur, eff, best[1]))
-                elif why is not None:
-                    f = fnd.get(eff.evidence)
-                    ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
-                    steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
-            cands.sort(key=lambda c: -c[0])
-            accepted = None
-            for gain_cv, eff, m in cands:
-                m.fit(S, er)
-                e_est, e_val = split.errors(m)
-                r0 = (split.val.y - current.predict(split.val))[split.val_rows]
-                r1 = (split.val.y - m.predict(split.val))[split.val_rows]
-                t = _chunk_t(r0, r1, chunk)
-                sse_new = float(((S.y - m.predict(S))[er] ** 2).sum())
-                dbic = n_est * np.log(sse_new / sse_cur) + (m.n_params - current.n_params) * np.log(n_est)
-                val_gain = 1.0 - e_val / cur_err[1]
-                ev: dict[str, Any] = {}
-                f = fnd.get(eff.evidence)
-                if f is not None:
-                    ev["residual_test"] = f.as_dict()
-                ev.update(cv_gain=round(gain_cv, 5), validation_gain=round(val_gain, 5), t_heldout=round(t, 2), delta_bic=round(float(dbic), 1))
-                reasons = []
-                if gain_cv <= 0:
-                    reasons.append("no cross-validated gain on estimation data")
-                if val_gain < cfg.min_gain:
-                    reasons.append(f"held-out error gain {100 * val_gain:.2f} % < {100 * cfg.min_gain:.2f} %")
-                if t < cfg.t_threshold:
-                    reasons.append(f"held-out gain within noise (t = {t:.2f} < {cfg.t_threshold})")
-                if dbic >= 0:
-                    reasons.append(f"BIC does not decrease ({dbic:+.1f})")
-                ok = not reasons and accepted is None
-                if ok:
-                    reason = f"held-out error {cur_err[1]:.3f} -> {e_val:.3f} % (t = {t:.1f}), BIC {dbic:+.1f}"
-                elif not reasons:
-                    reason = "passes, but a better-ranked effect was added this round"
-                else:
-                    reason = "; ".join(reasons)
-                steps.append(Step(rnd, eff.name, ok, reason, ev, e_est, e_val, m.params(), m))
-                if ok:
-                    accepted = (m, (e_est, e_val))
-            if accepted is None:
-                break
-            current, cur_err = accepted
-            current, cur_err = try_hold(current, cur_err, rnd)
-    y_hat = current.predict(S)
-    r = S.y - y_hat
-    final_f = _analyse_rows(S, er, r, y_hat, cfg.seed)
-    findings["final_estimation"] = final_f
-    unexplained = []
-    for f in final_f:
-        if f.significant:
-            tried = [e for e in f.suggests if e in names]
-            unexplained.append({"variable": f.variable, "run": "estimation", "z": round(f.z, 1), "statistic": round(f.statistic, 5),
-                                "candidates_tried": tried, "note": "residual still depends on " + f.variable + "; no catalogue effect reduced the held-out error enough",
-                                **{k: v for k, v in f.detail.items()}})
-    if split.val is not split.est:
-        yv = current.predict(split.val)
-        fv = analyse(split.val, split.val.y - yv, yv, seed=cfg.seed)
-        findings["final_validation"] = fv
-        for f in fv:
-            if f.significant:
-                unexplained.append({"variable": f.variable, "run": "validation", "z": round(f.z, 1), "statistic": round(f.statistic, 5),
-                                    "candidates_tried": [e for e in f.suggests if e in names], "note": "structure in the held-out run's residual", **{k: v for k, v in f.detail.items()}})
-    return LoopResult(split, base, base_err, steps, current, cur_err, unexplained, findings, alignment=alignment)
+    if not isinstance(cfg, LoopConfig):
+        raise InvalidInputError(f"`config` must be a LoopConfig, got {type(cfg).__name__}")
+    names = _check_names(cfg)
+    split, chunk = stage_prepare(est, val, cfg)
+    st = stage_baseline(split, chunk, cfg)
+    stage_select(st, cfg, names)
+    return stage_report(st, cfg, names)
 
 
 def _analyse_rows(S: Signals, rows: Array, r: Array, y_hat: Array, seed: int) -> list[Finding]:

@@ -1,0 +1,141 @@
+"""The loop's decision rule: settings checked before any work, a held-out test whose false
+rejection rate holds on coloured residuals, standstill left out of the fit, and the baseline's
+physical parameters followed through every step."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from gmsfric import InvalidInputError
+from gmsfric.loop import LoopConfig, run_loop
+from gmsfric.loop.data import AxisData
+from gmsfric.loop.rigs import Rig, simulate_rig
+from gmsfric.loop.select import baseline_physics, make_split, paired_chunk_test
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        (dict(holdout_fraction=float("nan")), "holdout_fraction"),
+        (dict(holdout_fraction=1.0), "holdout_fraction"),
+        (dict(alpha=0.0), "alpha"),
+        (dict(alpha=float("inf")), "alpha"),
+        (dict(min_gain=1.0), "min_gain"),
+        (dict(t_threshold=-1.0), "t_threshold"),
+        (dict(max_parameter_ratio=1.0), "max_parameter_ratio"),
+        (dict(rest_fraction=0.7), "rest_fraction"),
+        (dict(n_blocks=2), "n_blocks"),
+        (dict(inner_folds=1.5), "inner_folds"),
+        (dict(max_effects=True), "max_effects"),
+        (dict(effects=("stribeck", "magic")), "effects"),
+        (dict(effects="stribeck"), "effects"),
+        (dict(baseline=("inertia", "gravity")), "baseline"),
+        (dict(baseline=()), "baseline"),
+        (dict(preprocessing="recipe"), "preprocessing"),
+    ],
+)
+def test_bad_settings_are_refused_naming_the_setting(kwargs, name):
+    with pytest.raises(InvalidInputError, match=f"`{name}`"):
+        LoopConfig(**kwargs)
+
+
+def test_levels_spend_alpha_over_rounds_and_effects():
+    cfg = LoopConfig(alpha=0.01)
+    # the sum over rounds of (per-test level x tests) stays below alpha
+    assert sum(cfg.level(r, 10) * 10 for r in range(1, 50)) < 0.01
+    assert cfg.level(1, 10) == pytest.approx(0.01 / 2 / 10)
+    assert cfg.level(2, 5) < cfg.level(1, 5)
+
+
+def _coloured(rng: np.random.Generator, n: int, pole: float = 0.9) -> np.ndarray:
+    return signal.lfilter([1.0], [1.0, -pole], rng.standard_normal(n))
+
+
+def test_heldout_test_false_rejections_stay_at_their_level_on_coloured_residuals():
+    """Two models that are equally good (their residuals differ by independent coloured noise):
+    the one-sided p-value rejects at 5 % in about 5 % of the runs, not more."""
+    rng = np.random.default_rng(1)
+    n, chunk, reps = 1500, 60, 400
+    rejected = 0
+    for _ in range(reps):
+        e = _coloured(rng, n)
+        r0 = e + 0.3 * _coloured(rng, n, 0.95)
+        r1 = e + 0.3 * _coloured(rng, n, 0.95)
+        rejected += paired_chunk_test(r0, r1, chunk)[1] <= 0.05
+    assert rejected / reps < 0.08
+
+
+def test_heldout_test_sees_a_real_improvement():
+    rng = np.random.default_rng(2)
+    e = _coloured(rng, 1500)
+    structure = np.sin(np.linspace(0, 60, 1500))
+    t, p, m = paired_chunk_test(e + 2.0 * structure, e, 60)
+    assert m == 25 and t > 5 and p < 1e-4
+    t2, p2, _ = paired_chunk_test(e, e + 2.0 * structure, 60)
+    assert t2 < 0 and p2 > 0.99
+
+
+def _dwell_rig_data(seed: int = 5) -> tuple[AxisData, float]:
+    """A clean rig whose reference dwells (standstill with a holding force: the drive's integrator
+    and the friction share it)."""
+    rig = Rig(seed=seed, fs=1000.0, duration=16.0, fc=12.0)
+    d = simulate_rig(rig)
+    # hold the axis still for a third of the run: position frozen, a holding force within +-Fc
+    n = d.t.size
+    rest = (np.arange(n) // 1500) % 3 == 2
+    pos = d.position.copy()
+    for start in np.flatnonzero(np.diff(rest.astype(int)) == 1) + 1:
+        stop = start + int(np.argmin(rest[start:])) if not rest[start:].all() else n
+        pos[start:stop] = pos[start - 1]
+        if stop < n:
+            pos[stop:] += pos[start - 1] - pos[stop]
+    force = np.where(rest, 0.7 * rig.fc * np.sin(0.001 * np.arange(n)), d.force)
+    return AxisData(d.t, pos, force, source="dwell rig"), rig.fc
+
+
+def test_standstill_rows_are_left_out_and_reported():
+    data, fc = _dwell_rig_data()
+    res = run_loop(data, None, LoopConfig(progress=False))
+    ss = res.to_dict()["standstill"]
+    assert 20.0 < ss["estimation_rows_at_rest_pct"] < 45.0
+    split = res.split
+    assert not split.est_fit[~split.est.moving].any(), "no standstill row in the fit"
+    # the holding force does not drag the Coulomb level: fitted on moving rows only
+    assert res.baseline.params()["Fc"]["value"] == pytest.approx(fc, rel=0.15)
+    assert "presliding_hysteresis" not in res.effects
+
+
+def test_every_step_reports_the_baseline_parameters_and_a_physical_effect_keeps_them():
+    data = simulate_rig(Rig(effect="stribeck", seed=12, fs=1000.0, mass=80.0, fc=25.0, fv=200.0, duration=18.0))
+    res = run_loop(data, None, LoopConfig(progress=False))
+    tested = [s for s in res.steps if s.model is not None]
+    assert tested
+    for s in tested:
+        bp = s.evidence["baseline_parameters"]
+        assert set(bp) == {"M", "Fc", "Fv"}
+        assert all(set(v) == {"baseline", "with_step", "ratio"} for v in bp.values())
+    acc = next(s for s in res.steps if s.accepted and s.effect == "stribeck")
+    assert 0.7 < acc.evidence["baseline_parameters"]["M"]["ratio"] < 1.3
+
+
+def test_an_effect_that_corrupts_the_baseline_is_refused():
+    """A model whose extra column takes over the Coulomb level: its effective level (all friction
+    terms projected on sign(qd), qd) is what is compared, and a factor beyond the limit is refused."""
+    from gmsfric.loop.select import _plausibility
+
+    data = simulate_rig(Rig(seed=7, fs=1000.0, duration=12.0))
+    cfg = LoopConfig(progress=False)
+    split = make_split(data, None, cfg)
+    from gmsfric.loop.idim import BASE_TERMS, LinearModel
+
+    m0 = LinearModel([BASE_TERMS[b] for b in ("inertia", "viscous", "coulomb", "offset")]).fit(split.est, split.est_fit)
+    phys = baseline_physics(m0, split)
+    p0 = m0.params()
+    std = {k: p0[k]["std"] for k in ("M", "Fc", "Fv")}
+    same, why = _plausibility(phys, std, m0, split, cfg)
+    assert why is None and all(v["ratio"] == pytest.approx(1.0) for v in same.values())
+    bad = LinearModel(list(m0.terms), theta=m0.theta * np.array([1.0, 1.0, 0.3, 1.0]), cov=m0.cov)
+    change, why = _plausibility(phys, std, bad, split, cfg)
+    assert why is not None and "Coulomb level" in why and change["Fc"]["ratio"] == pytest.approx(0.3, rel=1e-3)
