@@ -92,7 +92,9 @@ def _compliance(s: Signals, fn: float, zeta: float) -> Array:
     w = 2 * np.pi * fn
     # (H - 1) qdd with H = (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2): -s^2/(...) qdd
     b, a = signal.bilinear([-1.0, 0.0, 0.0], [1.0, 2 * zeta * w, w * w], fs=s.fs)
-    return signal.lfilter(b, a, s.qdd)
+    # Start at rest relative to the first acceleration (the load follows it): a filter started
+    # from zero rings for several 1/(zeta w) and that ringing is not in the data.
+    return signal.lfilter(b, a, s.qdd, zi=signal.lfilter_zi(b, a) * s.qdd[0])[0]
 
 
 def lowpassed_speed(s: Signals, tau: float) -> Array:
@@ -132,6 +134,10 @@ class Effect:
     variants : callable
         ``variants(model, est_signals, residual_rows) -> list[LinearModel]``: the candidate
         extended models (unfitted), one per value of the effect's nonlinear parameters.
+    refine : callable, optional
+        ``refine(est_signals) -> [(low, high), ...]``: bounds of the nonlinear parameters when
+        they are refined continuously from the best grid variant (a sharp resonance between
+        two grid points fits poorly and extrapolates badly).
     """
 
     name: str
@@ -139,6 +145,7 @@ class Effect:
     evidence: str
     variants: Callable[[LinearModel, Signals, Array], list[LinearModel]]
     physical: Callable[[dict[str, dict[str, float]]], str | None] | None = None
+    refine: Callable[[Signals], list[tuple[float, float]]] | None = None
 
     def check(self, model: LinearModel) -> str | None:
         """Why the fitted ``model`` is not physical for this effect (``None`` when it is)."""
@@ -401,7 +408,8 @@ CATALOGUE: dict[str, Effect] = {
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants),
-        Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok),
+        Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
+               refine=lambda s: [(1.0, 0.45 * s.fs / s.dec), (0.01, 0.7)]),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 
 from .._progress import Progress
 from .._validate import count, finite
@@ -522,7 +522,36 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
             best = (cv, m)
         if prog is not None:
             prog.update(note=f"{eff.name}")
+    if best is not None and eff.refine is not None:
+        best = _refine_hyper(eff, best, st, cfg)
     return (best[1], best[0], why) if best is not None else (None, float("nan"), why)
+
+
+def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg: LoopConfig) -> tuple[float, LinearModel]:
+    """The effect's nonlinear parameters refined from the best grid variant (Nelder-Mead on their
+    logarithms, within the effect's bounds, on the same cross-validated error); the grid variant
+    stays when nothing better is found or the refined fit is not physical."""
+    cv0, m0 = best
+    term = next(t for t in m0.terms if t.name == eff.name)
+    bounds = np.log(np.asarray(eff.refine(st.split.est), dtype=float))  # type: ignore[misc]
+
+    def variant(z: Array) -> LinearModel:
+        return _replace_term(m0, term.with_hyper(tuple(float(v) for v in np.exp(np.clip(z, bounds[:, 0], bounds[:, 1])))))
+
+    def objective(z: Array) -> float:
+        try:
+            return _cv(variant(z), st.split, cfg)
+        except (IdentificationError, np.linalg.LinAlgError, ValueError):
+            return np.inf
+
+    z0 = np.clip(np.log(np.asarray(term.hyper, dtype=float)), bounds[:, 0], bounds[:, 1])
+    res = optimize.minimize(objective, z0, method="Nelder-Mead", options={"maxfev": 60, "xatol": 1e-3, "fatol": 1e-6 * cv0})
+    if not (np.isfinite(res.fun) and res.fun < cv0):
+        return best
+    m = variant(res.x)
+    if eff.physical is not None and eff.check(_fit(m, st.split)) is not None:
+        return best
+    return (float(res.fun), m)
 
 
 def _joint_refit(st: _State, cfg: LoopConfig, rnd: int) -> None:
@@ -553,6 +582,8 @@ def _joint_refit(st: _State, cfg: LoopConfig, rnd: int) -> None:
                 continue
             if cv < cur_cv:
                 cur_cv, model = cv, cand
+        if eff.refine is not None:
+            cur_cv, model = _refine_hyper(eff, (cur_cv, model), st, cfg)
     model = _fit(model, split)
     st.model = _align(model, split, cfg, st.alignment, rnd, st.chunk) if st.alignment else model
     st.err = split.errors(st.model)
