@@ -60,6 +60,8 @@ def test_loop_beats_published_best(loop_result):
     assert res.baseline_errors[1] == pytest.approx(5.98, abs=0.3)
     assert res.final_errors[0] < 3.11
     assert res.final_errors[1] < 5.98
+    # never worse than the model that asymmetry alone gave (2.95 / 3.68 %)
+    assert res.final_errors[0] <= 2.95 and res.final_errors[1] <= 3.68
     assert res.effects, "the loop must find what the reference model lacks"
     for s in res.steps:
         if s.accepted:
