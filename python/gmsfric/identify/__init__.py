@@ -1,4 +1,4 @@
-"""Identification of the paper's models, automatically and with uncertainty (issue 4).
+"""Identification of the paper's models, automatically and with uncertainty.
 
 Static map (eq. 2) from constant-velocity tests, GMS pre-sliding blocks from the virgin-curve
 test (eq. 6), plant and delay from an FRF (eq. 1), automatic model revision (Section 4.1), and a

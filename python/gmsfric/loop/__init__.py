@@ -1,4 +1,4 @@
-"""Residual-driven identification loop (issue 5): measured data -> baseline -> residual analysis
+"""Residual-driven identification loop: measured data -> baseline -> residual analysis
 -> effect catalogue -> justified, better model, with before/after errors.
 
 Typical use::

@@ -16,7 +16,8 @@ The loop runs in named stages (:func:`run_loop`):
    inside the estimation rows: the held-out rows never choose a variant) and tested on the
    held-out rows against the current model:
 
-   * a paired test over contiguous chunks of held-out rows of ``d = log(SSE_before/SSE_after)``,
+   * a paired test over contiguous chunks of held-out rows of the normalised decrease
+     ``d = (SSE_before - SSE_after) / (SSE_before + SSE_after)``,
      with a heteroscedasticity- and autocorrelation-consistent (Newey-West) standard error, gives
      a one-sided p-value (Student t);
    * the false-effect rate is held across the catalogue and all rounds: round ``r`` spends
@@ -439,7 +440,7 @@ def stage_prepare(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> tuple
             raise IdentificationError(f"{split.est.data.source}: only {int(rows.sum())} moving {name} rows; the axis barely moves")
     S = split.est
     # Chunks of about a second: long against the residual's correlation time (the chunks' means
-    # are then nearly independent and the log ratio of a chunk is not the ratio of two noise
+    # are then nearly independent and the decrease of a chunk is not the ratio of two noise
     # samples), and 20 to 60 of them for the t statistic.
     n = int(split.val_test.sum())
     chunk = int(np.clip(round(1.0 / (S.dt * S.dec)), n // 60, n // 20))
