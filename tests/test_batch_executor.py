@@ -31,7 +31,7 @@ def sweep_runs():
     return plant, frictions, controllers, ref
 
 
-def _same(a, b):
+def assert_same_results(a, b):
     for name in ("position", "command", "friction", "recorded_error"):
         x, y = getattr(a, name), getattr(b, name)
         assert (x is None) == (y is None), name
@@ -46,14 +46,14 @@ def test_thread_pool_chunks_equal_the_local_batch(sweep_runs, chunk_size):
     local = simulate_batch(plant, frictions, controllers, ref, DT, **options)
     with ThreadPoolExecutor(2) as pool:
         remote = simulate_batch(plant, frictions, controllers, ref, DT, executor=pool, chunk_size=chunk_size, threads=1, **options)
-    _same(local, remote)
+    assert_same_results(local, remote)
     assert remote.position.shape == (11, N)
     # Per-run 2-D inputs are split with the runs.
     noise = np.random.default_rng(2).normal(0.0, 1e-8, (11, N))
     local = simulate_batch(plant, frictions, controllers, ref, DT, measurement_noise=noise)
     with ThreadPoolExecutor(2) as pool:
         remote = simulate_batch(plant, frictions, controllers, ref, DT, measurement_noise=noise, executor=pool, chunk_size=4)
-    _same(local, remote)
+    assert_same_results(local, remote)
 
 
 def test_executor_errors_name_the_chunk_and_bad_executor_is_refused(sweep_runs):
@@ -75,4 +75,4 @@ def test_dask_local_cluster_gives_the_local_results_in_order(sweep_runs):
     local = simulate_batch(plant, frictions, controllers, ref, DT, record=("position", "friction", "error"))
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         remote = simulate_batch(plant, frictions, controllers, ref, DT, record=("position", "friction", "error"), executor=client.get_executor(), chunk_size=4, threads=1)
-    _same(local, remote)
+    assert_same_results(local, remote)

@@ -11,20 +11,25 @@ from numpy.typing import ArrayLike, NDArray
 from .errors import InvalidInputError
 
 
-def as_array(name: str, values: ArrayLike, *, min_len: int = 1) -> NDArray[np.float64]:
-    """A 1-D contiguous float64 view of ``values`` (no copy when it already is one).
-
-    Raises ``InvalidInputError`` naming ``name`` for non-numeric, non-1-D, empty, too short or
-    non-finite input.
-    """
+def float_array(name: str, values: ArrayLike) -> NDArray[np.float64]:
+    """A contiguous float64 view of ``values`` (no copy when it already is one), at least 1-D;
+    ``InvalidInputError`` naming ``name`` for a missing or non-numeric input."""
     if values is None:
         raise InvalidInputError(f"`{name}` is missing (None)")
     try:
         arr = np.ascontiguousarray(values, dtype=np.float64)
     except (TypeError, ValueError, OverflowError) as exc:
         raise InvalidInputError(f"`{name}` must be numeric: {exc}") from None
-    if arr.ndim == 0:
-        arr = arr.reshape(1)
+    return arr.reshape(1) if arr.ndim == 0 else arr
+
+
+def as_array(name: str, values: ArrayLike, *, min_len: int = 1) -> NDArray[np.float64]:
+    """A 1-D contiguous float64 view of ``values`` (no copy when it already is one).
+
+    Raises ``InvalidInputError`` naming ``name`` for non-numeric, non-1-D, empty, too short or
+    non-finite input.
+    """
+    arr = float_array(name, values)
     if arr.ndim != 1:
         raise InvalidInputError(f"`{name}` must be one-dimensional, got shape {arr.shape}")
     if arr.size < min_len:

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _gmsfric
-from ._validate import as_array, count, finite, number, show, step
+from ._validate import as_array, count, finite, float_array, number, show, step
 from .errors import InvalidInputError, SimulationError
 from .models import FrictionModel, NativeBacked, native_friction
 
@@ -388,14 +388,7 @@ _OPTION_ARRAYS = ("feedforward", "input_disturbance", "load_force", "measurement
 def _rows(name: str, values: ArrayLike, n_runs: int, n: int | None, *, allow_2d: bool) -> NDArray[np.float64]:
     """A C-contiguous float64 ``(1 or n_runs, n)`` array; a 1-D input becomes one shared row (a
     view: no copy when it already is contiguous float64)."""
-    if values is None:
-        raise InvalidInputError(f"`{name}` is missing (None)")
-    try:
-        arr = np.ascontiguousarray(values, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise InvalidInputError(f"`{name}` must be numeric: {exc}") from None
-    if arr.ndim == 0:
-        arr = arr.reshape(1)
+    arr = float_array(name, values)
     if arr.ndim == 1:
         if n is not None and arr.size == 1 and n > 1:
             arr = np.full(n, arr[0])
