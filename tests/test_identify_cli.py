@@ -142,3 +142,11 @@ def test_paper_replay_quick():
     assert set(models) == {"static_map", "gms", "plant", "revised_plant_static", "revised_plant_gms"}
     assert isinstance(models["gms"], GMS) and models["gms"] == rep.presliding.model_object
     assert models["plant"].force_gain == presets.paper_plant().force_gain
+
+
+def test_raw_static_map_refuses_a_time_unit_it_would_ignore(tmp_path, capsys):
+    f = tmp_path / "run.csv"
+    f.write_text("t,x,F\n" + "\n".join(f"{i},{i},1" for i in range(60)))
+    code = main(["identify", "static-map", str(f), "--time", "t", "--position", "x", "--force", "F", "--velocity-unit", "mm/s", "--time-unit", "ms"])
+    assert code == 2
+    assert "--time-unit of a raw run goes with --position-unit" in capsys.readouterr().err

@@ -136,6 +136,10 @@ def _static_map(args: argparse.Namespace, run: Run) -> int:
     if not raw and args.position_unit is not None:
         raise DataError("--position-unit goes with a raw run (--time and --position)")
     force_col = {"force": args.force} if args.command_col is None else {"command": args.command_col}
+    if raw and args.position_unit is None and args.velocity_unit is not None and args.time_unit != "s":
+        # with --velocity-unit alone the run is read in that unit's length and time: a time unit
+        # given beside it would be ignored, so it is refused
+        raise DataError("--time-unit of a raw run goes with --position-unit; with --velocity-unit alone the time is that unit's (give --position-unit instead)")
     if raw:
         pos_unit = args.position_unit or ("m" if args.velocity_unit is None else None)
         units = {"time": args.time_unit, "force": args.force_unit, **({"position": pos_unit} if pos_unit else {})}
