@@ -94,3 +94,16 @@ def test_no_excitation_is_an_error():
     t = np.arange(1000) * 1e-3
     with pytest.raises(IdentificationError, match="constant"):
         estimate_frf(t, np.ones(1000), np.zeros(1000))
+
+
+def test_delay_beyond_two_periods_of_the_highest_bin_is_found():
+    """Coherent bins up to 2.5 kHz put two periods of the highest bin at 0.8 ms; a 2.7 ms delay
+    lies beyond: the search widens instead of stopping at its end."""
+    plant = Plant(a=0.0112, b=30.8, c=403.0, delay=2.7e-3)
+    rig = VirtualRig(plant, None, None, dt=2e-4, encoder=1e-9)
+    d = rig.noise_test(20.0, 2.0, (0.5, 2400.0), seed=5)
+    res = fit_plant(estimate_frf(d["t"], d["input"], d["output"]))
+    assert 1.5 * 2.0 / res.info["band"][1] < plant.delay / 1.9  # the first search ends at half the delay
+    assert res.value("delay") == pytest.approx(plant.delay, rel=0.01)
+    assert res.value("a") == pytest.approx(plant.a, rel=0.02)
+    assert not [d for d in res.diagnostics if d.code == "at_bound" and d.parameter == "delay"]

@@ -24,7 +24,7 @@ from scipy.optimize import least_squares
 
 from .. import units as _units
 from .._validate import as_array, positive, same_length
-from ..errors import IdentificationError, InvalidInputError
+from ..errors import IdentificationError, InvalidInputError, SimulationError
 from ..batch import simulate_batch
 from ..system import Plant
 from .diagnostics import Findings, check_bounds, check_chi2, check_feedback, check_saturation, check_stderr, emit
@@ -409,7 +409,10 @@ def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: ND
     welch = _WelchRatio(record, u_si, f_data)
     H_meas = welch.ratio(record.output[None, :] * k_y)[0]
     n_q = 4 if fit_delay else 3
-    lo, hi = np.array([-np.inf, 0.0, 0.0, 0.0]), np.asarray(r0.bounds_hi, dtype=float)
+    lo, hi = np.array([-np.inf, 0.0, 0.0, 0.0]), np.asarray(r0.bounds_hi, dtype=float).copy()
+    # log a within ten decades of the direct fit: a step beyond cannot describe the same data
+    # and would overflow the simulated plant
+    lo[0], hi[0] = q0[0] - 23.0, q0[0] + 23.0
     lo, hi = lo[:n_q], hi[:n_q]
     scale = np.array([1.0, 2 * np.pi * f_data.min() / kt, (2 * np.pi * f_data.min() / kt) ** 2, dt_si])[:n_q]
 
@@ -417,7 +420,11 @@ def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: ND
         return [Plant(float(np.exp(q[0])), float(q[1]), float(q[2]), float(q[3]) if fit_delay else delay) for q in qs]
 
     def model(qs: list[NDArray[np.float64]]) -> NDArray[np.complex128]:
-        y = simulate_batch(plants(qs), None, None, None, dt_si, feedforward=u_si, record=("position",), threads=1, progress=False).position
+        try:
+            y = simulate_batch(plants(qs), None, None, None, dt_si, feedforward=u_si, record=("position",), threads=1, progress=False).position
+        except (InvalidInputError, SimulationError):
+            # a trial plant the core refuses (too fast for the step, diverging): far from the data
+            return np.full((len(qs), f_data.size), 1e6 * np.max(np.abs(H_meas)) + 1.0, dtype=complex)
         return welch.ratio(y)
 
     def stack(e: NDArray[np.complex128]) -> NDArray[np.float64]:
@@ -474,10 +481,25 @@ def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: ND
 def _fit_plant_si(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, fit_delay: bool, delay: float,
                   max_delay: float | None) -> tuple[NDArray[np.float64], Any]:
     """NLS of ``(log a, b, c, delay)`` on the SI FRF, started from Levy's linear fit on a grid of
-    delays (the three best starts polished)."""
+    delays (the three best starts polished).
+
+    Without ``max_delay`` the search spans two periods of the highest fitted bin; a delay found at
+    its end is not a result (coherent bins far above the excitation band make that span short),
+    so the span doubles, at the same grid resolution, until the delay lies inside it or reaches
+    what the phases of adjacent bins can tell apart."""
+    span = 2.0 / f.max() if max_delay is None else max_delay
+    limit = 0.5 / float(np.min(np.diff(f))) if f.size > 1 else span
+    while True:
+        x, best = _fit_plant_delay_span(f, H, sd, T, fit_delay, delay, span)
+        at_end = fit_delay and x[3] >= 0.99 * best.bounds_hi[3]
+        if max_delay is not None or not at_end or 2.0 * span > limit:
+            return x, best
+        span *= 2.0
+
+
+def _fit_plant_delay_span(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, fit_delay: bool, delay: float,
+                          max_delay: float) -> tuple[NDArray[np.float64], Any]:
     wrel = np.abs(H) / sd  # 1 / relative standard deviation
-    if max_delay is None:
-        max_delay = 2.0 / f.max()
     H_levy = H / zoh_factor(f, T)
 
     def resid(q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -485,7 +507,9 @@ def _fit_plant_si(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray
         e = (plant_response(f, float(np.exp(q[0])), float(q[1]), float(q[2]), float(tau), T) - H) / sd
         return np.concatenate([e.real, e.imag])
 
-    taus = np.linspace(0.0, max_delay, 161) if fit_delay else np.array([delay])
+    # 80 starts per period of the highest bin: the cost has a local minimum every period
+    n_taus = int(np.clip(round(80 * max_delay * f.max()) + 1, 161, 4001))
+    taus = np.linspace(0.0, max_delay, n_taus) if fit_delay else np.array([delay])
     starts = []
     for tau in taus:
         sol = _levy(f, H_levy, wrel, tau)
