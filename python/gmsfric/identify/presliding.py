@@ -1002,15 +1002,6 @@ def fit_presliding(
         info.update(stderr_inflation=inflation, chi2_dof=chi2_dof, refined=False)
         final = vfit
 
-    # A collapsed block set is never returned, whatever stage produced it: blocks without stiffness,
-    # or break forces that together explain next to nothing of the record's force swing (the
-    # admissibility test compares blocks with each other and cannot see all of them collapse).
-    swing = 0.5 * float(np.ptp(data.F)) if data is not None else float(np.max(np.abs(vc.g)))
-    if not np.all(np.isfinite(k_si)) or np.any(k_si <= 1e-9 * np.max(k_si)) or float(np.sum(w_si)) < 1e-3 * swing:
-        hint = " (try fewer blocks)" if n_blocks is not None else ""
-        raise IdentificationError(f"the data do not support {nb} blocks: the fit collapsed (total break force "
-                                  f"{float(np.sum(w_si)):.3g} against a force swing of {swing:.3g}, SI){hint}")
-
     # 8. findings, and the report in the data's units (the edge); the model object stays in SI
     model = _make_gms(k_si, w_si, c_si, st_si, sigma_si, slip_law)
     se_si = np.sqrt(np.clip(np.diag(cov_kw), 0, np.inf))
@@ -1056,6 +1047,12 @@ def _force_stage(data: _HysteresisData, vc: VirginCurve, fits: dict[int, list[Bl
         vfit = next((f for f in fits[nb] if f.admissible), fits[nb][0])
         others = [f for f in fits[nb] if f is not vfit and f.admissible][:1]
         fit, mask, virgin = _fit_hysteresis(data, vfit, others, list(vc.turning_points), lo, hi, vc.resolution, progress)
+        # The admissibility test compares the blocks with each other and cannot see all of them
+        # collapse: break forces that explain nothing of the record's force swing are no fit.
+        swing = 0.5 * float(np.ptp(data.F))
+        if fit.admissible and not float(np.sum(fit.w)) >= 1e-3 * swing:
+            fit.admissible = False
+            fit.reason = f"the fit collapsed (total break force {float(np.sum(fit.w)):.3g} against a force swing of {swing:.3g}, SI)"
         runs[nb] = (vfit, fit, mask, virgin)
         return fit.admissible
 
