@@ -106,4 +106,4 @@ def test_delay_beyond_two_periods_of_the_highest_bin_is_found():
     assert 1.5 * 2.0 / res.info["band"][1] < plant.delay / 1.9  # the first search ends at half the delay
     assert res.value("delay") == pytest.approx(plant.delay, rel=0.01)
     assert res.value("a") == pytest.approx(plant.a, rel=0.02)
-    assert not [d for d in res.diagnostics if d.code == "at_bound" and d.parameter == "delay"]
+    assert not [d for d in res.diagnostics if d["code"] == "at_bound" and d["parameter"] == "delay"]

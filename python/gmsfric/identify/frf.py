@@ -489,12 +489,13 @@ def _fit_plant_si(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray
     what the phases of adjacent bins can tell apart."""
     span = 2.0 / f.max() if max_delay is None else max_delay
     limit = 0.5 / float(np.min(np.diff(f))) if f.size > 1 else span
-    while True:
+    for _ in range(24):  # 2**24 periods: far beyond any bin spacing; bounds the work on pure noise
         x, best = _fit_plant_delay_span(f, H, sd, T, fit_delay, delay, span)
         at_end = fit_delay and x[3] >= 0.99 * best.bounds_hi[3]
-        if max_delay is not None or not at_end or 2.0 * span > limit:
-            return x, best
+        if max_delay is not None or not at_end or not 2.0 * span <= limit:
+            break
         span *= 2.0
+    return x, best
 
 
 def _fit_plant_delay_span(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, fit_delay: bool, delay: float,

@@ -84,6 +84,33 @@ def plot_closed_loop_runs(sims: dict[tuple[str, str], Any], runs: dict[str, Any]
     return fig
 
 
+def plot_open_loop(runs: dict[tuple[str, str], tuple[Any, Any]], *, rotary: bool = False) -> "Figure":
+    """Open-loop simulations (position from the measured command) against the measured position."""
+    unit = _units.display_unit("position", rotary)
+    k = 1.0 / _units.factor(unit, "position", rotary=rotary)
+    names = sorted({r for _, r in runs})
+    fig, axes = new_figure(2, len(names), figsize=(6.0 * len(names), 6.0), sharex=False)
+    axes = axes.reshape(2, -1)
+    for j, rn in enumerate(names):
+        shown = False
+        for (m, r), (data, res) in runs.items():
+            if r != rn or res.position is None:
+                continue
+            if not shown:
+                axes[0, j].plot(data.t, k * data.position, "k", lw=0.8, label="measured")
+                shown = True
+            axes[0, j].plot(data.t, k * res.position, lw=0.7, label=m)
+            axes[1, j].plot(data.t, k * (res.position - data.position), lw=0.7, label=m)
+        axes[0, j].set_title(f"{rn}: open loop", fontsize="medium")
+        axes[0, j].set_ylabel(f"position [{unit}]")
+        axes[1, j].set_ylabel(f"simulated - measured [{unit}]")
+        axes[1, j].set_xlabel("time [s]")
+        for ax in axes[:, j]:
+            ax.grid(True, alpha=0.3)
+            ax.legend(fontsize="small")
+    return fig
+
+
 def plot_finding(f: "Finding", *, rotary: bool = False) -> "Figure":
     """Figure of one residual test: residual against the variable with binned means, or the
     cross-correlation / coherence / position periodogram (display units of a linear or rotary axis)."""

@@ -134,6 +134,8 @@ class SimulationLoopResult(LoopResult):
     def plot(self) -> dict[str, "Figure"]:
         figs = super().plot()
         if self.open_loop_runs:
+            from .plots import plot_open_loop
+
             figs["open_loop"] = plot_open_loop(self.open_loop_runs, rotary=self.rotary)
         for name, r in self.refined.items():
             figs[f"simulation_fit_{name}"] = r.plot()["simulation"]
@@ -143,35 +145,6 @@ class SimulationLoopResult(LoopResult):
 def _fit_summary(r: OutputErrorResult) -> dict[str, Any]:
     d = r.to_dict()
     return {k: d[k] for k in ("parameters", "derived", "channels", "converged", "message", "n_simulations", "diagnostics")}
-
-
-def plot_open_loop(runs: dict[tuple[str, str], tuple[AxisData, ClosedLoopResult]], *, rotary: bool = False) -> "Figure":
-    """Open-loop simulations (position from the measured command) against the measured position."""
-    from ..plotting import new_figure
-
-    unit = _units.display_unit("position", rotary)
-    k = 1.0 / _units.factor(unit, "position", rotary=rotary)
-    names = sorted({r for _, r in runs})
-    fig, axes = new_figure(2, len(names), figsize=(6.0 * len(names), 6.0), sharex=False)
-    axes = axes.reshape(2, -1)
-    for j, rn in enumerate(names):
-        shown = False
-        for (m, r), (data, res) in runs.items():
-            if r != rn or res.position is None:
-                continue
-            if not shown:
-                axes[0, j].plot(data.t, k * data.position, "k", lw=0.8, label="measured")
-                shown = True
-            axes[0, j].plot(data.t, k * res.position, lw=0.7, label=m)
-            axes[1, j].plot(data.t, k * (res.position - data.position), lw=0.7, label=m)
-        axes[0, j].set_title(f"{rn}: open loop", fontsize="medium")
-        axes[0, j].set_ylabel(f"position [{unit}]")
-        axes[1, j].set_ylabel(f"simulated - measured [{unit}]")
-        axes[1, j].set_xlabel("time [s]")
-        for ax in axes[:, j]:
-            ax.grid(True, alpha=0.3)
-            ax.legend(fontsize="small")
-    return fig
 
 
 def add_simulation(result: LoopResult, controller: PID | Cascade | None, *, fit: bool = False, open_loop: bool = False,
