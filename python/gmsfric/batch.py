@@ -60,6 +60,7 @@ class BatchResult:
     not recorded are ``None``.
 
     ``result[i]`` is run ``i`` as a :class:`~gmsfric.system.ClosedLoopResult` (views, no copy).
+    ``dt`` is the step (s) and ``every`` the decimation of the recorded samples.
     """
 
     t: NDArray[np.float64]
@@ -71,6 +72,8 @@ class BatchResult:
     friction: Optional[NDArray[np.float64]] = None
     recorded_error: Optional[NDArray[np.float64]] = None
     n_runs: int = 0
+    dt: float = float("nan")
+    every: int = 1
 
     @property
     def error(self) -> NDArray[np.float64]:
@@ -92,7 +95,8 @@ class BatchResult:
             return None if a is None else a[i]
 
         return ClosedLoopResult(
-            t=self.t,
+            dt=self.dt,
+            every=self.every,
             reference=row(self.reference),
             position=row(self.position),
             velocity=row(self.velocity),
@@ -219,6 +223,8 @@ def simulate_batch(
         friction=out.get("friction"),
         recorded_error=out.get("error"),
         n_runs=n_runs,
+        dt=dt,
+        every=every,
     )
 
 

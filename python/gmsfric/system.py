@@ -8,6 +8,7 @@ turned into the core's one input description by :func:`run_inputs`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, ClassVar, Iterable, Iterator, Mapping, Optional, Sequence, TypedDict, Union
 
 import numpy as np
@@ -469,8 +470,8 @@ class ClosedLoopResult:
 
     Attributes
     ----------
-    t : ndarray
-        Time (s) of the recorded samples, ``k dt`` (every ``every``-th).
+    dt : float
+        Step of the run (s).
     reference : ndarray or None
         Reference at the recorded samples (``None`` in open loop).
     position, velocity, measured : ndarray or None
@@ -479,9 +480,14 @@ class ClosedLoopResult:
         Drive input over each step, after the drive limit (input units).
     friction : ndarray or None
         Force of friction and effects over each step (N).
+    every : int
+        Decimation: the recorded samples are steps ``0, every, 2 every, ...``.
+    t : ndarray
+        Time (s) of the recorded samples, ``k dt`` (every ``every``-th); built on first use,
+        so a run that only needs one output does not pay for a time axis.
     """
 
-    t: NDArray[np.float64]
+    dt: float
     reference: Optional[NDArray[np.float64]]
     position: Optional[NDArray[np.float64]] = None
     velocity: Optional[NDArray[np.float64]] = None
@@ -489,6 +495,16 @@ class ClosedLoopResult:
     command: Optional[NDArray[np.float64]] = None
     friction: Optional[NDArray[np.float64]] = None
     recorded_error: Optional[NDArray[np.float64]] = None
+    every: int = 1
+
+    @cached_property
+    def t(self) -> NDArray[np.float64]:
+        """Time (s) of the recorded samples."""
+        arrays = (self.position, self.velocity, self.measured, self.command, self.friction, self.recorded_error, self.reference)
+        n = next((a.shape[-1] for a in arrays if a is not None), 0)
+        t = np.arange(0, n * self.every, self.every, dtype=np.float64)[:n]
+        t *= self.dt  # in place: one allocation for the time axis
+        return t
 
     @property
     def error(self) -> NDArray[np.float64]:
@@ -584,12 +600,10 @@ def simulate_closed_loop(
     inputs, record, every = run_inputs(reference, 1, options, allow_2d=False)
     out = _gmsfric.simulate([axis], [ctrl], dt, inputs, _record_for_core(record, inputs), every, 1)
     rows = _measured_view({k: v[0] for k, v in out.items()}, record, inputs)
-    n = next(iter(out.values())).shape[1] if out else 0
-    t = np.arange(0, n * every, every, dtype=np.float64)[:n]
-    t *= dt  # in place: one allocation for the time axis
     ref = None if inputs["reference"] is None else inputs["reference"][0, ::every]
     return ClosedLoopResult(
-        t=t,
+        dt=dt,
+        every=every,
         reference=ref,
         position=rows.get("position"),
         velocity=rows.get("velocity"),
