@@ -144,7 +144,7 @@ def test_friction_batch_equals_single_runs_and_shares_input(axis):
         simulate_friction_batch([gms] * 3, t, bad)
 
 
-@pytest.mark.parametrize("n_runs", [4, 9])
+@pytest.mark.parametrize("n_runs", [8, 17])
 def test_runs_in_simd_lanes_agree_with_single_runs_and_not_with_threads(axis, n_runs):
     plant, gms, pid, ref = axis
     from dataclasses import replace
@@ -160,3 +160,39 @@ def test_runs_in_simd_lanes_agree_with_single_runs_and_not_with_threads(axis, n_
         np.testing.assert_allclose(one.position[i], single.position, rtol=0, atol=1e-12 * np.abs(single.position).max())
         np.testing.assert_allclose(one.friction[i], single.friction, rtol=0, atol=1e-10 * np.abs(single.friction).max())
         np.testing.assert_allclose(one.error[i], single.error, rtol=0, atol=1e-12 * np.abs(single.position).max())
+
+
+_LANES_SCRIPT = """
+import sys, numpy as np
+from gmsfric import GMS, PID, Plant, Stribeck
+from gmsfric.batch import simulate_batch
+st = Stribeck(0.1826, 0.210, 0.45e-3, 1.0)
+w = np.array([0.0330, 0.0570, 0.0132, 0.0026])
+frictions = [GMS(Stribeck(0.1826 * x, 0.210 * x, 0.45e-3, 1.0), [3264.7059e3, 8.8941e3, 23.7869e3, 2.6131e3], w / w.sum(), 1 / 0.45e-3, 6.9846)
+             for x in np.linspace(0.5, 1.5, 8)]
+ref = 2e-4 * np.sin(2 * np.pi * 2.0 * np.arange(4000) * 1e-4)
+res = simulate_batch(Plant(0.01985, 168.4, 176.8, 1.29e-3, 1.0), frictions, PID(5.0e5, 2.5e6, 1.0e3, 5e-4, -10.0, 10.0), ref, 1e-4,
+                     threads=1, record=("position", "friction"))
+np.save(sys.argv[1], np.stack([res.position, res.friction]))
+"""
+
+
+@pytest.mark.parametrize("disabled", ["GMSFRIC_NO_AVX512", "GMSFRIC_NO_AVX2"])
+def test_every_instruction_set_path_of_the_lanes_gives_the_same_runs(tmp_path, disabled):
+    """The batch kernel is compiled for AVX-512, AVX2 + FMA and baseline x86-64; the CPU picks one.
+    Turning the wider paths off (in a fresh process: the choice is made once) changes only
+    rounding: without FMA every multiply-add rounds twice."""
+    import os
+    import subprocess
+    import sys
+
+    paths = {}
+    for name, env in (("default", {}), (disabled, {disabled: "1"})):
+        out = tmp_path / f"{name}.npy"
+        subprocess.run([sys.executable, "-c", _LANES_SCRIPT, str(out)], check=True, timeout=120, env={**os.environ, **env})
+        paths[name] = np.load(out)
+    a, b = paths["default"], paths[disabled]
+    for k, what in enumerate(("position", "friction")):
+        scale = np.abs(a[k]).max()
+        assert scale > 0
+        np.testing.assert_allclose(b[k], a[k], rtol=0, atol=(1e-12 if k == 0 else 1e-10) * scale, err_msg=what)

@@ -19,9 +19,12 @@ __all__ = [
     "simulate",
     "simulate_friction",
     "__version__",
+    "LANES",
 ]
 
 __version__: str
+#: Runs advanced together in one SIMD vector group by the batch kernel.
+LANES: int
 
 class GmsfricError(Exception): ...
 class InvalidInputError(GmsfricError, ValueError): ...

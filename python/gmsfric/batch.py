@@ -50,8 +50,8 @@ __all__ = ["BatchResult", "simulate_batch", "sweep", "grid", "simulate_friction_
 PROGRESS_MIN_STEPS = 20_000_000
 #: Most worker threads a batch may ask for.
 MAX_THREADS = 1024
-#: Runs per SIMD vector in the core: executor chunks are whole multiples of it.
-LANES = 4
+#: Runs per SIMD vector group in the core: executor chunks are whole multiples of it.
+LANES: int = _gmsfric.LANES
 
 
 @dataclass(frozen=True)
@@ -230,7 +230,7 @@ def simulate_batch(
 
 def _chunks(n_runs: int, chunk_size: int | None) -> list[tuple[int, int]]:
     """``[start, stop)`` ranges of whole groups of :data:`LANES` runs (the core's SIMD groups
-    never straddle a multiple of 4, so each chunk computes what the whole batch computes)."""
+    never straddle a multiple of it, so each chunk computes what the whole batch computes)."""
     size = -(-n_runs // 64) if chunk_size is None else count("chunk_size", chunk_size, minimum=1)
     size = -(-size // LANES) * LANES
     return [(a, min(a + size, n_runs)) for a in range(0, n_runs, size)]

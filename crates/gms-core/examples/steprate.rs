@@ -66,18 +66,19 @@ fn main() {
         simulate_into(&plant, Some(&model), None, Some(&ctrl), &input, only_error).unwrap();
         best[3] = best[3].min(t0.elapsed().as_secs_f64());
     }
-    // A batch of 8 runs of the same structure (friction levels x0.5..x1.5): two vectors of 4
-    // lanes on one thread, against the same runs one at a time.
-    let jobs: Vec<batch::Job<'_>> = (0..8)
+    // A batch of NB runs of the same structure (friction levels x0.5..x1.5): one vector group
+    // (LANES = 8) on one thread, against the same runs one at a time.
+    const NB: usize = 8;
+    let jobs: Vec<batch::Job<'_>> = (0..NB)
         .map(|i| {
-            let x = 0.5 + i as f64 / 7.0;
+            let x = 0.5 + i as f64 / (NB - 1) as f64;
             let st = Stribeck::new(gms.stribeck.fc * x, gms.stribeck.fs * x, gms.stribeck.vs, 1.0).unwrap();
             let g = Gms::new(st, gms.k.clone(), gms.alpha.clone(), gms.c, gms.sigma, gms.slip_law).unwrap();
             batch::Job { axis: Axis::new(plant, Some(FrictionModel::Gms(g)), None).unwrap(), controller: Some(ctrl.clone()), input }
         })
         .collect();
     let rec = Record { position: false, velocity: false, measured: false, command: false, friction: false, error: true, every: 1 };
-    let mut bout = batch::BatchOutput::allocate(8, n, &rec).unwrap();
+    let mut bout = batch::BatchOutput::allocate(NB, n, &rec).unwrap();
     let (mut b_lanes, mut b_single) = (f64::INFINITY, f64::INFINITY);
     for _ in 0..3 {
         let t0 = Instant::process();
@@ -90,7 +91,7 @@ fn main() {
         }
         b_single = b_single.min(t0.process_elapsed());
     }
-    println!("batch of 8 on one thread (process CPU time): {:.1} ns per run-step in lanes, {:.1} one run at a time: {:.2}x", b_lanes / (8 * n) as f64 * 1e9, b_single / (8 * n) as f64 * 1e9, b_single / b_lanes);
+    println!("batch of {NB} on one thread (process CPU time): {:.1} ns per run-step in lanes, {:.1} one run at a time: {:.2}x", b_lanes / (NB * n) as f64 * 1e9, b_single / (NB * n) as f64 * 1e9, b_single / b_lanes);
     let ns = |s: f64| s / n as f64 * 1e9;
     println!(
         "best of 5, {n} steps, GMS N={blocks}: no friction {:.1} ns/step; generic loop {:.1} ns/step; fast kernel {:.1} ns/step (all outputs), {:.1} ns/step (error only); generic / fast = {:.2}",

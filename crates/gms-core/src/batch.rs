@@ -219,7 +219,7 @@ pub fn simulate_batch_stacked(jobs: &[Job<'_>], record: &Record, opts: &BatchOpt
 ///
 /// Runs of the same structure ([`crate::lanes::lane_key`]: GMS friction, PID, same plant, step
 /// and length, a reference and nothing else per sample) go in aligned groups of
-/// [`crate::lanes::LANES`] (runs `4j .. 4j + 3`), one SIMD vector per group; the others run one
+/// [`crate::lanes::LANES`] (runs `8j .. 8j + 7`), one SIMD vector group each; the others run one
 /// by one. Groups and single runs spread over the threads; which runs share a vector depends on
 /// the jobs only, so the results do not depend on the thread count.
 pub fn simulate_batch_into(jobs: &[Job<'_>], record: &Record, out: &mut BatchOutput, opts: &BatchOptions<'_>) -> std::result::Result<(), BatchError> {
@@ -296,7 +296,7 @@ enum Item<'a> {
     Lanes([usize; crate::lanes::LANES], [ClosedLoopBuffers<'a>; crate::lanes::LANES]),
 }
 
-/// Runs `4j .. 4j + 3` with equal lane keys share a vector; the rest run alone. Groups never
+/// Runs `8j .. 8j + 7` ([`crate::lanes::LANES`]) with equal lane keys share a vector group; the rest run alone. Groups never
 /// straddle a multiple of [`crate::lanes::LANES`], so a batch split into chunks of such sizes
 /// (`gmsfric.batch`'s `executor=`) computes exactly what the whole batch computes.
 fn plan<'a>(jobs: &[Job<'_>], rows: Vec<ClosedLoopBuffers<'a>>) -> Vec<Item<'a>> {

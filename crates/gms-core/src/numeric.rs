@@ -1,5 +1,5 @@
 //! Numerical helpers for the closed loop's per-step dependency chain: a fused multiply-add where
-//! the CPU has one, run-time CPU detection for the kernels compiled twice, and a checked
+//! the CPU has one, run-time CPU detection for the kernels compiled more than once, and a checked
 //! polynomial that replaces a division and an exponential.
 
 /// `a * b + c` as one fused instruction where the build targets a CPU with FMA (a local
@@ -34,6 +34,35 @@ pub fn has_avx2_fma() -> bool {
             2 => true,
             _ => {
                 let yes = std::env::var_os("GMSFRIC_NO_AVX2").is_none() && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+                STATE.store(if yes { 2 } else { 1 }, Ordering::Relaxed);
+                yes
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Whether this CPU runs the AVX-512 instantiation of the batch lanes (one 512-bit register holds
+/// a whole group of [`crate::lanes::LANES`] runs; with AVX2 a group takes two). Checked once;
+/// `GMSFRIC_NO_AVX512` in the environment turns it off (tests compare the paths).
+#[inline]
+pub fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::sync::atomic::{AtomicU8, Ordering};
+        static STATE: AtomicU8 = AtomicU8::new(0);
+        match STATE.load(Ordering::Relaxed) {
+            1 => false,
+            2 => true,
+            _ => {
+                let yes = std::env::var_os("GMSFRIC_NO_AVX512").is_none()
+                    && has_avx2_fma()
+                    && is_x86_feature_detected!("avx512f")
+                    && is_x86_feature_detected!("avx512vl")
+                    && is_x86_feature_detected!("avx512dq");
                 STATE.store(if yes { 2 } else { 1 }, Ordering::Relaxed);
                 yes
             }

@@ -138,8 +138,8 @@ fn friction_batch_equals_single_runs() {
     assert_eq!(err.run, 2);
 }
 
-/// A sweep of friction levels and gains: 9 runs of one structure, so 8 go two vectors of 4 lanes
-/// and one runs alone.
+/// A sweep of friction levels and gains: 9 runs of one structure, so 8 share a vector group
+/// ([`gms_core::lanes::LANES`]) and one runs alone.
 fn lane_jobs(r: &[f64]) -> Vec<Job<'_>> {
     (0..9)
         .map(|i| {

@@ -234,6 +234,7 @@ fn _gmsfric(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(reference_data, m)?)?;
     m.add_function(wrap_pyfunction!(reference_values, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("LANES", core::lanes::LANES)?;
     Ok(())
 }
 
