@@ -7,7 +7,8 @@ The batch is the issue's sweep on the ``numba_baseline.py`` system (paper axis, 
 recording its tracking error. Rows, interleaved repetitions (so load changes hit all of them):
 
 - one run at a time: ``simulate_closed_loop`` in a Python loop (the latency-optimised single run);
-- ``simulate_batch(..., threads=1)``: runs of one structure go 4 per AVX2 vector;
+- ``simulate_batch(..., threads=1)``: runs of one structure go in groups of 8 per SIMD vector
+  group (one AVX-512 register, or two AVX2 registers);
 - ``simulate_batch(..., threads=k)`` for every core;
 - with ``--dask``: ``simulate_batch(..., executor=client.get_executor())`` on a
   ``dask.distributed.LocalCluster`` (one worker process per core, one thread each), chunks of
@@ -43,7 +44,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=1_000_000)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--dask", action="store_true", help="add a dask LocalCluster row (needs the dask extra)")
-    ap.add_argument("--chunk", type=int, default=4, help="runs per executor chunk with --dask")
+    ap.add_argument("--chunk", type=int, default=8, help="runs per executor chunk with --dask (whole lane groups)")
     args = ap.parse_args()
     plant, gms, pid = nb.gmsfric_system(4)
     ref = nb.reference(args.steps)

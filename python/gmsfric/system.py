@@ -403,7 +403,11 @@ def _rows(name: str, values: ArrayLike, n_runs: int, n: int | None, *, allow_2d:
         raise InvalidInputError(f"`{name}` is empty")
     if n is not None and arr.shape[1] != n:
         raise InvalidInputError(f"`{name}` has length {arr.shape[1]} but the run has {n} samples: they must match")
-    if not np.isfinite(arr).all():
+    # A finite sum means every value is finite (inf and nan propagate); only a sum that
+    # overflowed or met a non-finite value needs the element-wise test.
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = arr.sum()
+    if not np.isfinite(total) and not np.isfinite(arr).all():
         r, c = np.argwhere(~np.isfinite(arr))[0]
         where = f"index {c}" if arr.shape[0] == 1 else f"row {r}, index {c}"
         raise InvalidInputError(f"`{name}` has a non-finite value ({arr[r, c]}) at {where}")
@@ -413,7 +417,11 @@ def _rows(name: str, values: ArrayLike, n_runs: int, n: int | None, *, allow_2d:
 def _drive_limits(drive_limit: Any) -> tuple[float, float]:
     if drive_limit is None:
         return (-np.inf, np.inf)
-    if np.ndim(drive_limit) == 0:
+    try:
+        scalar = np.ndim(drive_limit) == 0
+    except (ValueError, TypeError):  # a ragged sequence: taken as a pair, refused there
+        scalar = False
+    if scalar:
         lim = number("drive_limit", drive_limit)
         return (-lim, lim)
     try:

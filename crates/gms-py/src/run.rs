@@ -3,9 +3,9 @@
 //! row shared by every run); outputs are stacked `n_runs x n_samples` arrays moved into numpy
 //! without a copy.
 //!
-//! While the core works (GIL released, on a helper thread), this thread wakes every
-//! `poll_interval` seconds to report `progress(done, total)` and to check for Ctrl-C, which sets
-//! the core's cancel flag: running runs stop within a few thousand steps.
+//! While the core works (GIL released, on a helper thread), this thread maps the output pages,
+//! then wakes every `poll_interval` seconds to report `progress(done, total)` and to check for
+//! Ctrl-C, which sets the core's cancel flag: running runs stop within a few thousand steps.
 
 use crate::errors::{batch_err, to_pyerr, IntoPy};
 use crate::{AxisSpec, ControllerSpec, FrictionSpec};
@@ -118,30 +118,60 @@ fn check_output_size(n_runs: usize, samples: usize, arrays: usize) -> PyResult<(
     Ok(())
 }
 
-/// Long outputs are backed by transparent huge pages where the system allows it on request
-/// (`MADV_HUGEPAGE`, as numpy does for its own large arrays) and pre-faulted in one system call
-/// (`MADV_POPULATE_WRITE`). One fault per 4 KiB page taken while the simulation writes costs
-/// several ns per recorded step in a virtual machine, more than the step itself gains from any
-/// other tuning. Both are harmless where unsupported (older kernels, THP off).
-fn prefault(v: &mut [f64]) {
-    #[cfg(target_os = "linux")]
-    if v.len() >= (1 << 16) {
-        const MADV_POPULATE_WRITE: libc::c_int = 23;
-        let page = 4096usize;
-        let start = v.as_mut_ptr() as usize;
-        let aligned = start.div_ceil(page) * page;
-        let end = start + std::mem::size_of_val(v);
-        if end > aligned {
-            // SAFETY: the range lies inside the slice's allocation, which we borrow mutably; the
-            // advice only maps (zero) pages, it does not change the contents.
-            unsafe {
-                libc::madvise(aligned as *mut libc::c_void, (end - aligned) / page * page, libc::MADV_HUGEPAGE);
-                libc::madvise(aligned as *mut libc::c_void, (end - aligned) / page * page, MADV_POPULATE_WRITE);
+/// The whole 4 KiB pages of a long output (an address range: it is mapped while the core writes
+/// the output through its own borrow).
+#[derive(Clone, Copy)]
+struct Pages {
+    start: usize,
+    bytes: usize,
+}
+
+impl Pages {
+    /// The pages of `v` if it is long enough to be worth a system call, asking for transparent
+    /// huge pages for them (`MADV_HUGEPAGE`, as numpy does for its own large arrays; the system
+    /// decides). One 4 KiB fault per page taken while the simulation writes costs several ns per
+    /// recorded step in a virtual machine, more than any other tuning of the step gains.
+    fn of(v: &mut [f64]) -> Option<Self> {
+        const PAGE: usize = 4096;
+        if v.len() < (1 << 16) {
+            return None;
+        }
+        let start = (v.as_mut_ptr() as usize).div_ceil(PAGE) * PAGE;
+        let end = (v.as_mut_ptr() as usize + std::mem::size_of_val(v)) / PAGE * PAGE;
+        let pages = (end > start).then_some(Self { start, bytes: end - start })?;
+        #[cfg(target_os = "linux")]
+        // SAFETY: the range lies inside `v`'s allocation; the advice changes how pages not yet
+        // mapped will be backed, not the contents.
+        unsafe {
+            libc::madvise(pages.start as *mut libc::c_void, pages.bytes, libc::MADV_HUGEPAGE);
+        }
+        Some(pages)
+    }
+
+    /// Map the pages now (`MADV_POPULATE_WRITE`, a system call per 64 MiB) instead of one fault
+    /// at a time inside the simulation. Run by the thread that waits for the core, so it overlaps
+    /// the computation on a second CPU; stops as soon as `done` (a failed run). Harmless where
+    /// unsupported (older kernels).
+    fn populate(self, done: impl Fn() -> bool) {
+        #[cfg(target_os = "linux")]
+        {
+            const MADV_POPULATE_WRITE: libc::c_int = 23;
+            const CHUNK: usize = 64 << 20;
+            let mut at = 0;
+            while at < self.bytes && !done() {
+                let len = CHUNK.min(self.bytes - at);
+                // SAFETY: the range lies inside an output allocation that outlives the run;
+                // mapping fills absent pages with zeros, which is what the zeroed allocation
+                // holds, and leaves present pages (the core may have written them) unchanged.
+                unsafe {
+                    libc::madvise((self.start + at) as *mut libc::c_void, len, MADV_POPULATE_WRITE);
+                }
+                at += len;
             }
         }
+        #[cfg(not(target_os = "linux"))]
+        let _ = done;
     }
-    #[cfg(not(target_os = "linux"))]
-    let _ = v;
 }
 
 /// A non-finite value in an output becomes a `SimulationError` naming the quantity and index.
@@ -152,9 +182,10 @@ pub fn finite_output(_py: Python<'_>, quantity: &'static str, v: &[f64]) -> PyRe
     }
 }
 
-/// Run `work` on a helper thread with the GIL released; every `interval` re-attach briefly to
-/// report `progress(done, total)` and check signals (an exception there sets `cancel`, and is
-/// what the caller gets).
+/// Run `work` on a helper thread with the GIL released; this thread first maps the output
+/// `pages`, then every `interval` re-attaches briefly to report `progress(done, total)` and check
+/// signals (an exception there sets `cancel`, and is what the caller gets).
+#[allow(clippy::too_many_arguments)]
 fn run_polled<T: Send>(
     py: Python<'_>,
     total: usize,
@@ -162,6 +193,7 @@ fn run_polled<T: Send>(
     cancel: &AtomicBool,
     progress: Option<Py<PyAny>>,
     interval: f64,
+    pages: &[Pages],
     work: impl FnOnce() -> T + Send,
 ) -> PyResult<T> {
     let interval = Duration::from_secs_f64(if interval.is_finite() && interval > 0.0 { interval.clamp(0.005, 60.0) } else { 0.2 });
@@ -174,6 +206,9 @@ fn run_polled<T: Send>(
                 waiter.unpark();
                 r
             });
+            for p in pages {
+                p.populate(|| worker.is_finished());
+            }
             let mut last = usize::MAX;
             while !worker.is_finished() {
                 std::thread::park_timeout(interval);
@@ -264,12 +299,10 @@ pub fn simulate<'py>(
         }
     }
     let mut out = BatchOutput::allocate(n_runs, rec.samples(n), &rec).py()?;
-    for v in [&mut out.position, &mut out.velocity, &mut out.measured, &mut out.command, &mut out.friction, &mut out.error] {
-        prefault(v);
-    }
+    let pages: Vec<Pages> = [&mut out.position, &mut out.velocity, &mut out.measured, &mut out.command, &mut out.friction, &mut out.error].into_iter().filter_map(|v| Pages::of(v)).collect();
     let (counter, cancel) = (AtomicUsize::new(0), AtomicBool::new(false));
     let opts = BatchOptions { threads, progress: Some(&counter), cancel: Some(&cancel) };
-    run_polled(py, n_runs, &counter, &cancel, progress, poll_interval, || core::batch::simulate_batch_into(&jobs, &rec, &mut out, &opts))?
+    run_polled(py, n_runs, &counter, &cancel, progress, poll_interval, &pages, || core::batch::simulate_batch_into(&jobs, &rec, &mut out, &opts))?
         .map_err(|e| batch_err(py, e, n_runs))?;
     let shape = [out.n_runs, out.n_samples];
     let d = PyDict::new(py);
@@ -310,7 +343,7 @@ pub fn simulate_friction<'py>(
     let models: Vec<core::FrictionModel> = models.iter().map(|m| m.model.clone()).collect();
     let (counter, cancel) = (AtomicUsize::new(0), AtomicBool::new(false));
     let opts = BatchOptions { threads, progress: Some(&counter), cancel: Some(&cancel) };
-    let out = run_polled(py, n_runs, &counter, &cancel, progress, poll_interval, || core::batch::simulate_position_batch(&models, t, &rows, &opts))?
+    let out = run_polled(py, n_runs, &counter, &cancel, progress, poll_interval, &[], || core::batch::simulate_position_batch(&models, t, &rows, &opts))?
         .map_err(|e| batch_err(py, e, n_runs))?;
     finite_output(py, "friction force", &out)?;
     Ok(out.into_pyarray(py).reshape([n_runs, t.len()])?)
