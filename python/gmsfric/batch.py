@@ -3,11 +3,11 @@ a cluster.
 
 Parameter sweeps, Monte Carlo over identified uncertainties and controller-gain sweeps are
 independent runs: the compiled core spreads them over all cores (rayon) with the GIL released and
-returns stacked ``(n_runs, n_samples)`` arrays.  Runs ``4j .. 4j+3`` of the same structure (GMS
-friction, PID, same plant, step and length, nothing per sample but the reference) are advanced
-together in one SIMD vector; they agree with :func:`gmsfric.simulate_closed_loop` to rounding
+returns stacked ``(n_runs, n_samples)`` arrays.  Runs ``8j .. 8j+7`` (:data:`LANES`) of the same
+structure (GMS friction, PID, same plant, step and length, nothing per sample but the reference)
+are advanced together in one SIMD vector group; they agree with :func:`gmsfric.simulate_closed_loop` to rounding
 (within 1e-12 of the position range, tested), every other run bit for bit.  Results never depend
-on the number of threads, nor on ``executor=`` (chunks of whole groups of 4 runs, each running
+on the number of threads, nor on ``executor=`` (chunks of whole groups of :data:`LANES` runs, each running
 the compiled batch on a worker: any :class:`concurrent.futures.Executor`, e.g. a
 ``dask.distributed.Client(...).get_executor()``).
 
