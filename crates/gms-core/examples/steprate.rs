@@ -92,6 +92,18 @@ fn main() {
         b_single = b_single.min(t0.process_elapsed());
     }
     println!("batch of {NB} on one thread (process CPU time): {:.1} ns per run-step in lanes, {:.1} one run at a time: {:.2}x", b_lanes / (NB * n) as f64 * 1e9, b_single / (NB * n) as f64 * 1e9, b_single / b_lanes);
+    // The same runs twice over (two vector groups) on one thread and on two: wall time.
+    let jobs2: Vec<batch::Job<'_>> = jobs.iter().chain(&jobs).cloned().collect();
+    let mut bout2 = batch::BatchOutput::allocate(2 * NB, n, &rec).unwrap();
+    let mut wall = [f64::INFINITY; 2];
+    for _ in 0..3 {
+        for (slot, threads) in [(0, 1), (1, 2)] {
+            let t0 = std::time::Instant::now();
+            batch::simulate_batch_into(&jobs2, &rec, &mut bout2, &batch::BatchOptions { threads: Some(threads), ..Default::default() }).unwrap();
+            wall[slot] = wall[slot].min(t0.elapsed().as_secs_f64());
+        }
+    }
+    println!("batch of {} (two groups), wall, best of 3: 1 thread {:.2} ns per run-step, 2 threads {:.2}: {:.2}x", 2 * NB, wall[0] / (2 * NB * n) as f64 * 1e9, wall[1] / (2 * NB * n) as f64 * 1e9, wall[0] / wall[1]);
     let ns = |s: f64| s / n as f64 * 1e9;
     println!(
         "best of 5, {n} steps, GMS N={blocks}: no friction {:.1} ns/step; generic loop {:.1} ns/step; fast kernel {:.1} ns/step (all outputs), {:.1} ns/step (error only); generic / fast = {:.2}",
