@@ -94,16 +94,19 @@ ref = 1e-3 * np.sin(np.linspace(0, 50, n))
 start = time.monotonic()
 print("go", flush=True)
 try:
-    g.simulate_closed_loop(g.Plant(1, 10, 0), blocks, g.PID(100.0), ref, 1e-4, record=("position",), every=1000)
+    g.simulate_closed_loop(g.Plant(1, 10, 0), blocks, g.PID(100.0), ref, 1e-4, record={record}, every={every})
     print("finished", time.monotonic() - start)
 except KeyboardInterrupt:
     print("interrupted", time.monotonic() - start)
 """
 
 
-def test_ctrl_c_from_another_thread_interrupts_a_single_long_run():
+@pytest.mark.parametrize("record, every", [(("position",), 1000), (("position", "velocity", "command", "friction", "error"), 1)])
+def test_ctrl_c_from_another_thread_interrupts_a_single_long_run(record, every):
+    # Second case: 160 MB of outputs, which the waiting thread maps piece by piece between its
+    # signal checks.
     trigger = "threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT)).start()"
-    proc = isolated(LONG_RUN.format(trigger=trigger), timeout=300)
+    proc = isolated(LONG_RUN.format(trigger=trigger, record=record, every=every), timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     last = proc.stdout.split()[-2:]
     assert last[0] == "interrupted", proc.stdout
@@ -114,7 +117,7 @@ def test_ctrl_c_from_another_thread_interrupts_a_single_long_run():
 def test_ctrl_c_from_another_process_interrupts_a_single_long_run():
     prelude = "import numpy as np, gmsfric as g\n"
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
-    child = subprocess.Popen([sys.executable, "-c", prelude + LONG_RUN.format(trigger="")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    child = subprocess.Popen([sys.executable, "-c", prelude + LONG_RUN.format(trigger="", record=("position",), every=1000)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                              text=True, env=env)
     try:
         assert child.stdout is not None

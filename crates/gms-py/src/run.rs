@@ -15,7 +15,7 @@ use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyA
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Rows of a 2-D input: `rows == 1` (shared) or `rows == n_runs`, contiguous float64.
 struct Rows<'a> {
@@ -148,30 +148,28 @@ impl Pages {
         Some(pages)
     }
 
-    /// Map the pages now (`MADV_POPULATE_WRITE`, a system call per 64 MiB) instead of one fault
-    /// at a time inside the simulation. Run by the thread that waits for the core, so it overlaps
-    /// the computation on a second CPU; stops as soon as `done` (a failed run). Harmless where
-    /// unsupported (older kernels).
-    fn populate(self, done: impl Fn() -> bool) {
-        #[cfg(target_os = "linux")]
-        {
-            const MADV_POPULATE_WRITE: libc::c_int = 23;
-            const CHUNK: usize = 64 << 20;
-            let mut at = 0;
-            while at < self.bytes && !done() {
-                let len = CHUNK.min(self.bytes - at);
-                // SAFETY: the range lies inside an output allocation that outlives the run;
-                // mapping fills absent pages with zeros, which is what the zeroed allocation
-                // holds, and leaves present pages (the core may have written them) unchanged.
-                unsafe {
-                    libc::madvise((self.start + at) as *mut libc::c_void, len, MADV_POPULATE_WRITE);
-                }
-                at += len;
-            }
-        }
-        #[cfg(not(target_os = "linux"))]
-        let _ = done;
+    /// The pages in pieces of 64 MiB, for [`populate`] one at a time.
+    fn pieces(self) -> impl Iterator<Item = Pages> {
+        const PIECE: usize = 64 << 20;
+        (0..self.bytes).step_by(PIECE).map(move |at| Pages { start: self.start + at, bytes: PIECE.min(self.bytes - at) })
     }
+}
+
+/// Map `pages` now (`MADV_POPULATE_WRITE`, one system call) instead of one fault at a time inside
+/// the simulation. Harmless where unsupported (older kernels).
+fn populate(pages: Pages) {
+    #[cfg(target_os = "linux")]
+    {
+        const MADV_POPULATE_WRITE: libc::c_int = 23;
+        // SAFETY: the range lies inside an output allocation that outlives the run; mapping fills
+        // absent pages with zeros, which is what the zeroed allocation holds, and leaves present
+        // pages (the core may have written them) unchanged.
+        unsafe {
+            libc::madvise(pages.start as *mut libc::c_void, pages.bytes, MADV_POPULATE_WRITE);
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = pages;
 }
 
 /// A non-finite value in an output becomes a `SimulationError` naming the quantity and index.
@@ -182,9 +180,10 @@ pub fn finite_output(_py: Python<'_>, quantity: &'static str, v: &[f64]) -> PyRe
     }
 }
 
-/// Run `work` on a helper thread with the GIL released; this thread first maps the output
-/// `pages`, then every `interval` re-attaches briefly to report `progress(done, total)` and check
-/// signals (an exception there sets `cancel`, and is what the caller gets).
+/// Run `work` on a helper thread with the GIL released. Meanwhile this thread maps the output
+/// `pages` piece by piece (so it overlaps the computation on a second CPU) and, every `interval`,
+/// re-attaches briefly to report `progress(done, total)` and check signals (an exception there
+/// sets `cancel`, stops the mapping, and is what the caller gets).
 #[allow(clippy::too_many_arguments)]
 fn run_polled<T: Send>(
     py: Python<'_>,
@@ -206,15 +205,18 @@ fn run_polled<T: Send>(
                 waiter.unpark();
                 r
             });
-            for p in pages {
-                p.populate(|| worker.is_finished());
-            }
+            let mut to_map = pages.iter().flat_map(|p| p.pieces());
+            let mut next_poll = Instant::now() + interval;
             let mut last = usize::MAX;
             while !worker.is_finished() {
-                std::thread::park_timeout(interval);
-                if worker.is_finished() || py_err.is_some() {
+                match to_map.next() {
+                    Some(piece) if py_err.is_none() => populate(piece),
+                    _ => std::thread::park_timeout(next_poll.saturating_duration_since(Instant::now())),
+                }
+                if worker.is_finished() || py_err.is_some() || Instant::now() < next_poll {
                     continue;
                 }
+                next_poll = Instant::now() + interval;
                 Python::attach(|py| {
                     let res = py.check_signals().and_then(|()| {
                         let done = counter.load(Ordering::Relaxed);
