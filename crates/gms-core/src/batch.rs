@@ -242,7 +242,8 @@ pub fn simulate_batch_into(jobs: &[Job<'_>], record: &Record, out: &mut BatchOut
     let run_item = |item: Item<'_>| -> Vec<(usize, Result<()>)> {
         match item {
             Item::Single(i, buffers) => vec![(i, run_one(i, buffers))],
-            Item::Lanes(idx, mut buffers) => {
+            Item::Lanes(group) => {
+                let (idx, mut buffers) = *group;
                 if idx[0] > first_failure.load(Ordering::Relaxed) {
                     return idx.iter().map(|&i| (i, Err(CoreError::Interrupted))).collect();
                 }
@@ -293,7 +294,8 @@ pub fn simulate_batch_into(jobs: &[Job<'_>], record: &Record, out: &mut BatchOut
 /// A unit of batch work: one run, or [`crate::lanes::LANES`] runs in one vector.
 enum Item<'a> {
     Single(usize, ClosedLoopBuffers<'a>),
-    Lanes([usize; crate::lanes::LANES], [ClosedLoopBuffers<'a>; crate::lanes::LANES]),
+    /// Boxed: a group's row buffers are large beside a single run's.
+    Lanes(Box<([usize; crate::lanes::LANES], [ClosedLoopBuffers<'a>; crate::lanes::LANES])>),
 }
 
 /// Runs `8j .. 8j + 7` ([`crate::lanes::LANES`]) with equal lane keys share a vector group; the rest run alone. Groups never
@@ -311,7 +313,7 @@ fn plan<'a>(jobs: &[Job<'_>], rows: Vec<ClosedLoopBuffers<'a>>) -> Vec<Item<'a>>
         let key = lane_key(&jobs[start].axis, jobs[start].controller.as_ref(), &jobs[start].input);
         if key.is_some() && idx.iter().all(|&j| lane_key(&jobs[j].axis, jobs[j].controller.as_ref(), &jobs[j].input) == key) {
             let bufs = idx.map(|j| rows[j].take().expect("each row once"));
-            items.push(Item::Lanes(idx, bufs));
+            items.push(Item::Lanes(Box::new((idx, bufs))));
         }
     }
     for (i, row) in rows.iter_mut().enumerate() {
