@@ -21,23 +21,31 @@ pub fn fma_if<const F: bool>(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
+/// A CPU capability, detected on first use and remembered in `state` (0: unknown, 1: no, 2: yes).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn remembered(state: &std::sync::atomic::AtomicU8, detect: impl FnOnce() -> bool) -> bool {
+    use std::sync::atomic::Ordering;
+    match state.load(Ordering::Relaxed) {
+        1 => false,
+        2 => true,
+        _ => {
+            let yes = detect();
+            state.store(if yes { 2 } else { 1 }, Ordering::Relaxed);
+            yes
+        }
+    }
+}
+
 /// Whether this CPU runs the AVX2 + FMA instantiations of the hot kernels (checked once; the
 /// portable build runs everywhere and takes the fast path where it exists).
+/// `GMSFRIC_NO_AVX2` in the environment turns it off (and AVX-512 with it).
 #[inline]
 pub fn has_avx2_fma() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        use std::sync::atomic::{AtomicU8, Ordering};
-        static STATE: AtomicU8 = AtomicU8::new(0);
-        match STATE.load(Ordering::Relaxed) {
-            1 => false,
-            2 => true,
-            _ => {
-                let yes = std::env::var_os("GMSFRIC_NO_AVX2").is_none() && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
-                STATE.store(if yes { 2 } else { 1 }, Ordering::Relaxed);
-                yes
-            }
-        }
+        static STATE: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
+        remembered(&STATE, || std::env::var_os("GMSFRIC_NO_AVX2").is_none() && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"))
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -52,21 +60,14 @@ pub fn has_avx2_fma() -> bool {
 pub fn has_avx512() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        use std::sync::atomic::{AtomicU8, Ordering};
-        static STATE: AtomicU8 = AtomicU8::new(0);
-        match STATE.load(Ordering::Relaxed) {
-            1 => false,
-            2 => true,
-            _ => {
-                let yes = std::env::var_os("GMSFRIC_NO_AVX512").is_none()
-                    && has_avx2_fma()
-                    && is_x86_feature_detected!("avx512f")
-                    && is_x86_feature_detected!("avx512vl")
-                    && is_x86_feature_detected!("avx512dq");
-                STATE.store(if yes { 2 } else { 1 }, Ordering::Relaxed);
-                yes
-            }
-        }
+        static STATE: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
+        remembered(&STATE, || {
+            std::env::var_os("GMSFRIC_NO_AVX512").is_none()
+                && has_avx2_fma()
+                && is_x86_feature_detected!("avx512f")
+                && is_x86_feature_detected!("avx512vl")
+                && is_x86_feature_detected!("avx512dq")
+        })
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
