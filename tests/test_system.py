@@ -35,6 +35,20 @@ def test_closed_loop_result_unpacks_and_plots(tmp_path):
     assert (tmp_path / "cl.png").stat().st_size > 1000
 
 
+@pytest.mark.parametrize("every", [1, 7])
+def test_time_axis_of_a_result_is_the_recorded_steps_times_dt(every):
+    # Built on first use: one output recorded, the same k dt as every decimated sample.
+    dt = 2.5e-4
+    r = 1e-3 * np.sin(2 * np.pi * 0.5 * np.arange(1001) * dt)
+    res = g.simulate_closed_loop(presets.paper_plant(), presets.paper_gms(), presets.paper_pid(), r, dt, record=("error",), every=every)
+    steps = np.arange(0, r.size, every)
+    assert res.error.shape == res.t.shape == steps.shape
+    np.testing.assert_array_equal(res.t, steps * dt)
+    batch = g.batch.simulate_batch(presets.paper_plant(), [presets.paper_gms()] * 2, presets.paper_pid(), r, dt, record=("error",), every=every)
+    np.testing.assert_array_equal(batch[1].t, batch.t)
+    np.testing.assert_array_equal(batch.t, steps * dt)
+
+
 def test_emps_reference_model_holds_still_under_offset_free_zero_reference():
     # EMPS cascade with the reference friction and a constant reference: the axis settles and
     # friction balances the command exactly (stiction is held without chattering).
