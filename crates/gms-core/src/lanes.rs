@@ -490,3 +490,36 @@ fn kernel<const NP: usize, const F: bool>(d: &DiscretePlant, p: &Params<NP>, ref
     }
     Ok(true)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Worst distance of `exp_neg` from libm's `exp(-p)` in units in the last place, on a dense
+    /// grid of `[0, 700]` (finer where the Stribeck exponent lives, `p < 50`).
+    fn worst_ulp(f: impl Fn(f64) -> f64) -> f64 {
+        let grid = (0..=200_000).map(|i| 50.0 * i as f64 / 200_000.0).chain((0..=100_000).map(|i| 50.0 + 650.0 * i as f64 / 100_000.0));
+        grid.map(|p| {
+            let want = (-p).exp();
+            let ulp = f64::from_bits(want.to_bits() + 1) - want;
+            (f(p) - want).abs() / ulp
+        })
+        .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn the_lanes_exponential_is_within_two_ulp_of_libm() {
+        let plain = worst_ulp(exp_neg::<false>);
+        assert!(plain <= 2.0, "without FMA: {plain} ulp");
+        #[cfg(target_arch = "x86_64")]
+        if crate::numeric::has_avx2_fma() {
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn fused(p: f64) -> f64 {
+                exp_neg::<true>(p)
+            }
+            // SAFETY: the CPU has AVX2 and FMA (checked just above).
+            let fused_worst = worst_ulp(|p| unsafe { fused(p) });
+            assert!(fused_worst <= 2.0, "with FMA: {fused_worst} ulp");
+        }
+    }
+}
