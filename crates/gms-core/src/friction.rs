@@ -568,6 +568,16 @@ impl FrictionModel {
     pub fn reset(&mut self) {
         with_friction!(self, f => f.reset())
     }
+
+    /// Elements updated per step (blocks of a multi-block model, 1 otherwise): the step's cost
+    /// grows with it.
+    pub fn elements(&self) -> usize {
+        match self {
+            FrictionModel::Gms(g) => g.n_blocks().max(1),
+            FrictionModel::MaxwellSlip(m) => m.k.len().max(1),
+            FrictionModel::Static(_) | FrictionModel::LuGre(_) => 1,
+        }
+    }
 }
 
 /// Friction force along a measured position trajectory `x(t)`.

@@ -180,14 +180,22 @@ pub fn finite_output(_py: Python<'_>, quantity: &'static str, v: &[f64]) -> PyRe
     }
 }
 
-/// Run `work` on a helper thread with the GIL released. Meanwhile this thread maps the output
-/// `pages` piece by piece (so it overlaps the computation on a second CPU) and, every `interval`,
-/// re-attaches briefly to report `progress(done, total)` and check signals (an exception there
-/// sets `cancel`, stops the mapping, and is what the caller gets).
+/// Work of at most this many block-steps (samples x friction elements, summed over the runs)
+/// runs on the calling thread: a few ms at most, so Ctrl-C can wait for it, while starting and
+/// waking a helper thread can itself take a scheduler tick (~4 ms seen in a VM), more than a
+/// short run costs. Optimisers and the loop call short runs thousands of times.
+const INLINE_STEPS: usize = 200_000;
+
+/// Run `work` (of `steps` block-steps) with the GIL released; short work on this thread, longer work on
+/// a helper thread while this one maps the output `pages` piece by piece (so it overlaps the
+/// computation on a second CPU) and, every `interval`, re-attaches briefly to report
+/// `progress(done, total)` and check signals (an exception there sets `cancel`, stops the
+/// mapping, and is what the caller gets).
 #[allow(clippy::too_many_arguments)]
 fn run_polled<T: Send>(
     py: Python<'_>,
     total: usize,
+    steps: usize,
     counter: &AtomicUsize,
     cancel: &AtomicBool,
     progress: Option<Py<PyAny>>,
@@ -195,25 +203,36 @@ fn run_polled<T: Send>(
     pages: &[Pages],
     work: impl FnOnce() -> T + Send,
 ) -> PyResult<T> {
+    if steps <= INLINE_STEPS && progress.is_none() {
+        let out = py.detach(work);
+        py.check_signals()?;
+        return Ok(out);
+    }
     let interval = Duration::from_secs_f64(if interval.is_finite() && interval > 0.0 { interval.clamp(0.005, 60.0) } else { 0.2 });
     let mut py_err: Option<PyErr> = None;
+    // Set by the worker just before it wakes this thread: `is_finished` would still be false
+    // for the moment the worker takes to exit, and this thread would sleep a whole interval.
+    let done = AtomicBool::new(false);
     let out = py.detach(|| {
         std::thread::scope(|s| {
             let waiter = std::thread::current();
+            let done = &done;
             let worker = s.spawn(move || {
                 let r = work();
+                done.store(true, Ordering::Release);
                 waiter.unpark();
                 r
             });
+            let finished = || done.load(Ordering::Acquire);
             let mut to_map = pages.iter().flat_map(|p| p.pieces());
             let mut next_poll = Instant::now() + interval;
             let mut last = usize::MAX;
-            while !worker.is_finished() {
+            while !finished() {
                 match to_map.next() {
                     Some(piece) if py_err.is_none() => populate(piece),
                     _ => std::thread::park_timeout(next_poll.saturating_duration_since(Instant::now())),
                 }
-                if worker.is_finished() || py_err.is_some() || Instant::now() < next_poll {
+                if finished() || py_err.is_some() || Instant::now() < next_poll {
                     continue;
                 }
                 next_poll = Instant::now() + interval;
@@ -304,7 +323,8 @@ pub fn simulate<'py>(
     let pages: Vec<Pages> = [&mut out.position, &mut out.velocity, &mut out.measured, &mut out.command, &mut out.friction, &mut out.error].into_iter().filter_map(|v| Pages::of(v)).collect();
     let (counter, cancel) = (AtomicUsize::new(0), AtomicBool::new(false));
     let opts = BatchOptions { threads, progress: Some(&counter), cancel: Some(&cancel) };
-    run_polled(py, n_runs, &counter, &cancel, progress, poll_interval, &pages, || core::batch::simulate_batch_into(&jobs, &rec, &mut out, &opts))?
+    let work = jobs.iter().map(|j| n.saturating_mul(j.axis.friction.as_ref().map_or(1, |f| f.elements()))).fold(0usize, usize::saturating_add);
+    run_polled(py, n_runs, work, &counter, &cancel, progress, poll_interval, &pages, || core::batch::simulate_batch_into(&jobs, &rec, &mut out, &opts))?
         .map_err(|e| batch_err(py, e, n_runs))?;
     let shape = [out.n_runs, out.n_samples];
     let d = PyDict::new(py);
@@ -345,7 +365,8 @@ pub fn simulate_friction<'py>(
     let models: Vec<core::FrictionModel> = models.iter().map(|m| m.model.clone()).collect();
     let (counter, cancel) = (AtomicUsize::new(0), AtomicBool::new(false));
     let opts = BatchOptions { threads, progress: Some(&counter), cancel: Some(&cancel) };
-    let out = run_polled(py, n_runs, &counter, &cancel, progress, poll_interval, &[], || core::batch::simulate_position_batch(&models, t, &rows, &opts))?
+    let work = models.iter().map(|m| t.len().saturating_mul(m.elements())).fold(0usize, usize::saturating_add);
+    let out = run_polled(py, n_runs, work, &counter, &cancel, progress, poll_interval, &[], || core::batch::simulate_position_batch(&models, t, &rows, &opts))?
         .map_err(|e| batch_err(py, e, n_runs))?;
     finite_output(py, "friction force", &out)?;
     Ok(out.into_pyarray(py).reshape([n_runs, t.len()])?)
