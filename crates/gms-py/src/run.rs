@@ -3,9 +3,10 @@
 //! row shared by every run); outputs are stacked `n_runs x n_samples` arrays moved into numpy
 //! without a copy.
 //!
-//! While the core works (GIL released, on a helper thread), this thread maps the output pages,
-//! then wakes every `poll_interval` seconds to report `progress(done, total)` and to check for
-//! Ctrl-C, which sets the core's cancel flag: running runs stop within a few thousand steps.
+//! Short work runs on the calling thread with the GIL released. Longer work runs on a helper
+//! thread while this one maps the output pages, then wakes every `poll_interval` seconds to
+//! report `progress(done, total)` and to check for Ctrl-C, which sets the core's cancel flag:
+//! running runs stop within a few thousand steps.
 
 use crate::errors::{batch_err, to_pyerr, IntoPy};
 use crate::{AxisSpec, ControllerSpec, FrictionSpec};
