@@ -162,6 +162,17 @@ fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Res
     }
 }
 
+/// `f` over `items`, results in the order of `items`: on the calling thread when one thread is
+/// asked for (a pool of one costs a thread start and wake-up, which can exceed a short batch: ~4
+/// ms seen in a VM, and optimisers call short batches thousands of times), else on a pool of
+/// `threads` workers (or the global pool).
+fn map_items<I: Send, R: Send>(threads: Option<usize>, items: Vec<I>, f: impl Fn(I) -> R + Sync + Send) -> Result<Vec<R>> {
+    if threads == Some(1) {
+        return Ok(items.into_iter().map(f).collect());
+    }
+    in_pool(threads, || items.into_par_iter().map(f).collect())
+}
+
 /// Run `f` under the options' cancel flag and progress counter.
 fn track<T>(opts: &BatchOptions<'_>, f: impl FnOnce() -> Result<T>) -> Result<T> {
     if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
@@ -184,11 +195,7 @@ fn input_of<'a>(job: &Job<'a>, opts: &BatchOptions<'a>) -> ClosedLoopInput<'a> {
 /// Run every job in parallel; one result per job, in the order of `jobs`. Runs of different
 /// lengths are fine. A failing run does not stop the others; setting `opts.cancel` stops them.
 pub fn simulate_batch(jobs: &[Job<'_>], opts: &BatchOptions<'_>) -> Result<Vec<Result<ClosedLoopOutput>>> {
-    in_pool(opts.threads, || {
-        jobs.par_iter()
-            .map(|job| track(opts, || job.axis.simulate(job.controller.as_ref(), &input_of(job, opts))))
-            .collect()
-    })
+    map_items(opts.threads, jobs.iter().collect(), |job| track(opts, || job.axis.simulate(job.controller.as_ref(), &input_of(job, opts))))
 }
 
 /// Run every job in parallel, writing the outputs `record` asks for into stacked
@@ -277,7 +284,7 @@ pub fn simulate_batch_into(jobs: &[Job<'_>], record: &Record, out: &mut BatchOut
         }
     };
     let mut results: Vec<(usize, Result<()>)> =
-        in_pool(opts.threads, || items.into_par_iter().flat_map_iter(run_item).collect()).map_err(|error| BatchError { run: 0, error })?;
+        map_items(opts.threads, items, run_item).map_err(|error| BatchError { run: 0, error })?.into_iter().flatten().collect();
     results.sort_by_key(|(i, _)| *i);
     let results: Vec<Result<()>> = results.into_iter().map(|(_, r)| r).collect();
     // Report the lowest-index real failure; skipped runs are a consequence, not a cause (they
@@ -345,25 +352,20 @@ pub fn simulate_position_batch(
         crate::error::check::increasing("t", t, 2).map_err(|error| BatchError { run: 0, error })?;
         return Ok(out);
     }
-    let results: Vec<Result<()>> = in_pool(opts.threads, || {
-        out.par_chunks_mut(n)
-            .zip(models.par_iter())
-            .enumerate()
-            .map(|(i, (row, model))| {
-                if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                    return Err(CoreError::Interrupted);
-                }
-                let x = positions[if positions.len() == 1 { 0 } else { i }];
-                let mut m = model.clone();
-                m.reset();
-                let f = crate::with_friction!(&mut m, e => crate::friction::simulate_position(e, t, x));
-                if let Some(p) = opts.progress {
-                    p.fetch_add(1, Ordering::Relaxed);
-                }
-                row.copy_from_slice(&f?);
-                Ok(())
-            })
-            .collect()
+    let rows: Vec<(usize, (&mut [f64], &FrictionModel))> = out.chunks_mut(n).zip(models.iter()).enumerate().collect();
+    let results: Vec<Result<()>> = map_items(opts.threads, rows, |(i, (row, model))| {
+        if opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return Err(CoreError::Interrupted);
+        }
+        let x = positions[if positions.len() == 1 { 0 } else { i }];
+        let mut m = model.clone();
+        m.reset();
+        let f = crate::with_friction!(&mut m, e => crate::friction::simulate_position(e, t, x));
+        if let Some(p) = opts.progress {
+            p.fetch_add(1, Ordering::Relaxed);
+        }
+        row.copy_from_slice(&f?);
+        Ok(())
     })
     .map_err(|error| BatchError { run: 0, error })?;
     match results.into_iter().enumerate().find(|(_, r)| r.is_err()) {
