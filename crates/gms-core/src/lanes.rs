@@ -266,7 +266,6 @@ unsafe fn kernel_avx2<const NP: usize>(d: &DiscretePlant, p: &Params<NP>, refs: 
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,fma")]
-#[allow(clippy::too_many_arguments)]
 unsafe fn kernel_avx512<const NP: usize>(d: &DiscretePlant, p: &Params<NP>, refs: [&[f64]; LANES], input: &ClosedLoopInput<'_>, out: &mut LaneRows<'_>, cancel: Option<&std::sync::atomic::AtomicBool>) -> Result<bool> {
     kernel::<NP, true>(d, p, refs, input, out, cancel)
 }
@@ -277,8 +276,6 @@ fn kernel<const NP: usize, const F: bool>(d: &DiscretePlant, p: &Params<NP>, ref
     const L: usize = LANES;
     let n = input.len();
     let refs: [&[f64]; L] = std::array::from_fn(|l| &refs[l][..n]);
-    // One reference for every run (the common sweep): one load and a broadcast per step.
-    let shared_ref = refs.iter().all(|r| std::ptr::eq(r.as_ptr(), refs[0].as_ptr()));
     let every = out[0].every.max(1);
     let samples = n.div_ceil(every);
     let (p00, p01, p10, p11) = (d.phi[(0, 0)], d.phi[(0, 1)], d.phi[(1, 0)], d.phi[(1, 1)]);
@@ -338,7 +335,7 @@ fn kernel<const NP: usize, const F: bool>(d: &DiscretePlant, p: &Params<NP>, ref
         for kk in start..end {
             let mut u = [0.0f64; L];
             // SAFETY: kk < end <= n = refs[l].len().
-            let rk: [f64; L] = if shared_ref { [unsafe { *refs[0].get_unchecked(kk) }; L] } else { std::array::from_fn(|l| unsafe { *refs[l].get_unchecked(kk) }) };
+            let rk: [f64; L] = std::array::from_fn(|l| unsafe { *refs[l].get_unchecked(kk) });
             for l in 0..L {
                 // `Pid::update` operation for operation (plain multiply and add, as there).
                 let r = rk[l];
