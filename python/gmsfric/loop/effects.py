@@ -83,9 +83,15 @@ def _basis_names(prefix: str, h: tuple, rotary: bool = False) -> tuple[str, ...]
 
 
 def _play(s: Signals, delta: float) -> Array:
-    """Maxwell-slip element of unit break force and break displacement ``delta`` (compiled core)."""
+    """Maxwell-slip element of unit break force and break displacement ``delta`` (compiled core),
+    driven by the measured position.
+
+    Pre-sliding is displacement while the contact holds, so the element must only move when the
+    axis does.  The zero-phase filtered position cannot be used: it leaks the motion after a stick
+    into the stick, where the force crosses the stiction band with the axis at rest, and an
+    element driven by it fits that ramp as "pre-sliding" on any axis that sticks at reversals."""
     m = _models.MaxwellSlip(k=[1.0 / delta], w=[1.0])
-    return _models.simulate_friction(m, s.t + 0.0, s.q)
+    return _models.simulate_friction(m, s.t + 0.0, np.asarray(s.data.position, dtype=float))
 
 
 def _compliance(s: Signals, fn: float, zeta: float) -> Array:
@@ -144,12 +150,13 @@ class Effect:
     description: str
     evidence: str
     variants: Callable[[LinearModel, Signals, Array], list[LinearModel]]
-    physical: Callable[[dict[str, dict[str, float]]], str | None] | None = None
+    physical: Callable[[dict[str, dict[str, float]], Signals], str | None] | None = None
     refine: Callable[[Signals], list[tuple[float, float]]] | None = None
 
-    def check(self, model: LinearModel) -> str | None:
-        """Why the fitted ``model`` is not physical for this effect (``None`` when it is)."""
-        return None if self.physical is None else self.physical(model.params())
+    def check(self, model: LinearModel, s: Signals) -> str | None:
+        """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
+        it is)."""
+        return None if self.physical is None else self.physical(model.params(), s)
 
     def applicable(self, model: LinearModel) -> bool:
         return self.name not in model.effects and not (self.name == "offset" and any(t.name == "offset" for t in model.terms))
@@ -181,11 +188,12 @@ def velocity_resolution(s: Signals) -> float:
 
 
 def direction_resolution(s: Signals) -> float:
-    """Distance the axis travels through a reversal (at its rms acceleration) within the velocity
-    filter's time constant: below it, sign(qd) of the filtered velocity cannot place the change of
-    direction."""
+    """Distance the axis travels from a reversal (at its rms acceleration) within half a period of
+    the velocity filter, the window the stuck test uses: the zero-phase filter blends the motion
+    on either side of a reversal or a stop over about that window, so neither sign(qd) nor a
+    pre-sliding element can place a change of the force within it."""
     a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
-    return a_rms / (2.0 * np.pi * s.cutoff) ** 2
+    return 0.5 * a_rms * (0.5 / s.cutoff) ** 2
 
 
 def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
@@ -372,17 +380,32 @@ def _offset(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     return [_add(model, Term("offset", ("offset",), lambda s, h: np.ones_like(s.q)), "offset")]
 
 
-def _stribeck_ok(p: dict[str, dict[str, float]]) -> str | None:
+def dip_resolution(s: Signals) -> float:
+    """Narrowest low-speed *dip* of friction (``Fs < Fc``) the data resolve: the speed the axis
+    gains at its rms acceleration within one period of the velocity filter, and three times the
+    standstill speed.  Through a reversal or a stick the zero-phase filter spreads the change of
+    ``sign(qd)`` over about that window, and the force's switch, seen against the filtered
+    velocity, looks exactly like friction that is lower at low speed; a hump (``Fs > Fc``) is
+    the opposite of that blur, so it may be as narrow as :func:`velocity_resolution`."""
+    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
+    return max(3.0 * s.rest_speed, a_rms / s.cutoff)
+
+
+def _stribeck_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     # The curve may fall or rise towards rest (friction lower at low speed happens, e.g. in a
-    # preloaded screw); what must hold is a positive friction level at rest, Fs = Fc + (Fs - Fc).
+    # preloaded screw); what must hold is a positive friction level at rest, Fs = Fc + (Fs - Fc),
+    # and a dip must be wider than the blur of the filtered velocity through a reversal.
     fc = p.get("Fc", {"value": 0.0})["value"]
     ds = p["Fs_minus_Fc"]["value"] if "Fs_minus_Fc" in p else 0.0
     if fc + ds <= 0:
         return f"friction level at rest Fs = Fc + (Fs - Fc) = {fc + ds:.3g} is not positive"
+    if ds < 0 and "vs" in p and p["vs"]["value"] < (dip := dip_resolution(s)):
+        return (f"a dip (Fs - Fc = {ds:.3g}) of width vs = {p['vs']['value']:.3g} is narrower than the velocity filter's "
+                f"blur through a reversal ({dip:.3g}): the switch of sign(qd) looks like that")
     return None
 
 
-def _load_ok(p: dict[str, dict[str, float]]) -> str | None:
+def _load_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     m2 = p["m_load"]["value"] if "m_load" in p else 0.0
     mass = p["M"]["value"] if "M" in p else np.inf
     if not 0 < m2 < mass:
@@ -390,7 +413,7 @@ def _load_ok(p: dict[str, dict[str, float]]) -> str | None:
     return None
 
 
-def _blocks_ok(p: dict[str, dict[str, float]]) -> str | None:
+def _blocks_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     for n, v in p.items():
         if n.startswith("w_block") and v["value"] < -2 * v["std"]:
             return f"negative block break force {n} = {v['value']:.3g}"

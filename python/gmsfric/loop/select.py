@@ -512,7 +512,7 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
     for m in eff.variants(model, st.split.est, r_est):
         try:
             if eff.physical is not None:
-                w = eff.check(_fit(m, st.split))
+                w = eff.check(_fit(m, st.split), st.split.est)
                 if w is not None:
                     why = w
                     continue
@@ -550,7 +550,7 @@ def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg:
     if not (np.isfinite(res.fun) and res.fun < cv0):
         return best
     m = variant(res.x)
-    if eff.physical is not None and eff.check(_fit(m, st.split)) is not None:
+    if eff.physical is not None and eff.check(_fit(m, st.split), st.split.est) is not None:
         return best
     return (float(res.fun), m)
 
@@ -576,7 +576,7 @@ def _joint_refit(st: _State, cfg: LoopConfig, rnd: int) -> None:
         for v in variants:
             cand = _with_delay(model, v.delay, dt) if name == "input_delay" else _replace_term(model, next(t for t in v.terms if t.name == name))
             try:
-                if eff.physical is not None and eff.check(_fit(cand, split)) is not None:
+                if eff.physical is not None and eff.check(_fit(cand, split), split.est) is not None:
                     continue
                 cv = _cv(cand, split, cfg)
             except (IdentificationError, np.linalg.LinAlgError, ValueError):
