@@ -1,0 +1,72 @@
+"""Catalogue columns against what the data can resolve: pre-sliding elements follow the measured
+position (not the zero-phase filtered one), and a low-speed dip of friction must be wider than
+the blur of the filtered velocity through a reversal."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gmsfric.loop.data import AxisData
+from gmsfric.loop.effects import _play, _presliding, _stribeck_ok, dip_resolution, direction_resolution, velocity_resolution
+from gmsfric.loop.idim import LinearModel, Signals
+
+FS = 1000.0
+RES = 1e-7  # encoder step, m
+
+
+def _stick_at_reversal() -> tuple[Signals, np.ndarray]:
+    """A quantised axis that decelerates to a stop, sticks for 0.2 s at the turning point and
+    departs at a constant acceleration; returns the signals and the last 20 ms of the stick, where
+    the raw position is still constant and the zero-phase filtered one already moves back."""
+    t = np.arange(0.0, 4.0, 1.0 / FS)
+    a = 2.0  # m/s^2: the force built up while stuck throws the axis off
+    q = 0.01 - 0.5 * a * np.where(t < 1.9, 1.9 - t, np.where(t > 2.1, t - 2.1, 0.0)) ** 2
+    q = np.round(q / RES) * RES
+    f = 5.0 * np.sign(np.gradient(q)) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    s = Signals(AxisData(t, q, f, source="stick"))
+    held = (t > 2.08) & (t < 2.1)
+    assert np.ptp(q[held]) == 0.0 and np.ptp(s.q[held]) > RES  # the filter leaks the departure into the stick
+    return s, held
+
+
+def test_presliding_element_holds_while_the_axis_sticks():
+    s, held = _stick_at_reversal()
+    for delta in (2 * RES, 5 * RES, 20 * RES):
+        col = _play(s, delta)
+        assert np.all(np.abs(col) <= 1.0 + 1e-12)
+        # pre-sliding is displacement while the contact holds: no displacement, no change
+        assert np.ptp(col[held]) == 0.0, delta
+        # and it does switch when the axis moves back (it is not a constant)
+        assert col[-1] == pytest.approx(-col[int(1.5 * FS)]) and abs(col[-1]) == pytest.approx(1.0)
+
+
+def test_presliding_grid_starts_beyond_the_filter_blur():
+    s, _ = _stick_at_reversal()
+    blur = direction_resolution(s)
+    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
+    # distance travelled from a reversal within half a period of the velocity filter
+    assert blur == pytest.approx(0.5 * a_rms * (0.5 / s.cutoff) ** 2)
+    variants = _presliding(LinearModel([]), s, np.zeros(s.n_rows))
+    assert variants
+    smallest = min(min(t.hyper) for m in variants for t in m.terms if t.name == "presliding_hysteresis")
+    assert smallest >= max(2 * s.resolution, blur) * (1 - 1e-12)
+
+
+def _params(fc: float, ds: float, vs: float) -> dict[str, dict[str, float]]:
+    return {"Fc": {"value": fc, "std": 0.1}, "Fs_minus_Fc": {"value": ds, "std": 0.1}, "vs": {"value": vs, "std": float("nan")}}
+
+
+def test_a_dip_narrower_than_the_filter_blur_is_not_a_stribeck_curve():
+    s, _ = _stick_at_reversal()
+    dip = dip_resolution(s)
+    assert dip >= velocity_resolution(s)  # a dip needs more room than a hump
+    narrow = 0.5 * (velocity_resolution(s) + dip) if dip > velocity_resolution(s) else 0.9 * dip
+    why = _stribeck_ok(_params(5.0, -2.0, narrow), s)
+    assert why is not None and "dip" in why
+    # the same width as a hump (friction higher at rest) is fine: blur never makes a hump
+    assert _stribeck_ok(_params(5.0, +2.0, narrow), s) is None
+    # a dip wider than the blur is a friction curve
+    assert _stribeck_ok(_params(5.0, -2.0, 1.5 * dip), s) is None
+    # the friction at rest must stay positive whatever the width
+    assert "not positive" in _stribeck_ok(_params(5.0, -6.0, 10 * dip), s)
