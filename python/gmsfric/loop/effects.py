@@ -177,14 +177,29 @@ def _asymmetric(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     return [_add(model, t, "asymmetric_friction")]
 
 
+def _rms_acceleration(s: Signals) -> float:
+    """The run's typical acceleration (rms over its rows): what sets how far and how fast the axis
+    gets within the velocity filter's blur through a reversal."""
+    return float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
+
+
 def velocity_resolution(s: Signals) -> float:
     """Smallest speed scale a velocity curve can be identified on: three times the standstill
     threshold, and the speed the axis gains within the velocity filter's time constant at its
     typical (rms) acceleration -- through a reversal the filtered velocity cannot separate speeds
     closer than that.  A narrower "Stribeck curve" only marks the rows next to a reversal or a
     stop, where the force crosses the stiction band, and fits that instead of a speed law."""
-    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
-    return max(3.0 * s.rest_speed, a_rms / (2.0 * np.pi * s.cutoff))
+    return max(3.0 * s.rest_speed, _rms_acceleration(s) / (2.0 * np.pi * s.cutoff))
+
+
+def dip_resolution(s: Signals) -> float:
+    """Narrowest low-speed *dip* of friction (``Fs < Fc``) the data resolve: the speed the axis
+    gains at its rms acceleration within one period of the velocity filter, and three times the
+    standstill speed.  Through a reversal or a stick the zero-phase filter spreads the change of
+    ``sign(qd)`` over about that window, and the force's switch, seen against the filtered
+    velocity, looks exactly like friction that is lower at low speed; a hump (``Fs > Fc``) is
+    the opposite of that blur, so it may be as narrow as :func:`velocity_resolution`."""
+    return max(3.0 * s.rest_speed, _rms_acceleration(s) / s.cutoff)
 
 
 def direction_resolution(s: Signals) -> float:
@@ -192,8 +207,7 @@ def direction_resolution(s: Signals) -> float:
     the velocity filter, the window the stuck test uses: the zero-phase filter blends the motion
     on either side of a reversal or a stop over about that window, so neither sign(qd) nor a
     pre-sliding element can place a change of the force within it."""
-    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
-    return 0.5 * a_rms * (0.5 / s.cutoff) ** 2
+    return 0.5 * _rms_acceleration(s) * (0.5 / s.cutoff) ** 2
 
 
 def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
@@ -378,17 +392,6 @@ def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[Linea
 
 def _offset(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     return [_add(model, Term("offset", ("offset",), lambda s, h: np.ones_like(s.q)), "offset")]
-
-
-def dip_resolution(s: Signals) -> float:
-    """Narrowest low-speed *dip* of friction (``Fs < Fc``) the data resolve: the speed the axis
-    gains at its rms acceleration within one period of the velocity filter, and three times the
-    standstill speed.  Through a reversal or a stick the zero-phase filter spreads the change of
-    ``sign(qd)`` over about that window, and the force's switch, seen against the filtered
-    velocity, looks exactly like friction that is lower at low speed; a hump (``Fs > Fc``) is
-    the opposite of that blur, so it may be as narrow as :func:`velocity_resolution`."""
-    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
-    return max(3.0 * s.rest_speed, a_rms / s.cutoff)
 
 
 def _stribeck_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
