@@ -70,3 +70,22 @@ def test_a_dip_narrower_than_the_filter_blur_is_not_a_stribeck_curve():
     assert _stribeck_ok(_params(5.0, -2.0, 1.5 * dip), s) is None
     # the friction at rest must stay positive whatever the width
     assert "not positive" in _stribeck_ok(_params(5.0, -6.0, 10 * dip), s)
+
+
+def test_presliding_is_still_found_when_the_position_is_noisy_rather_than_quantised():
+    # the elements follow the raw position: analog noise (2 um on an 80 mm travel, no encoder
+    # steps) must not hide real pre-sliding nor break the fit
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop.rigs import Rig, rig_pair
+
+    est, val = rig_pair(Rig(effect="presliding_hysteresis", seed=13, fs=500.0, mass=30.0, travel=0.08, duration=18.0, quantization=1e-9))
+    rng = np.random.default_rng(1)
+
+    def noisy(d: AxisData) -> AxisData:
+        return AxisData(d.t, d.position + 2e-6 * rng.standard_normal(d.position.size), d.force, source=d.source)
+
+    # the contact's friction is all in its elements: Fc fits slightly below zero and the axis model says so
+    with pytest.warns(UserWarning, match="negative"):
+        result = run_loop(noisy(est), noisy(val), LoopConfig(progress=False)).to_dict()
+    assert result["final"]["effects"] == ["presliding_hysteresis"]
+    assert result["final"]["validation_error_pct"] < 0.7 * result["baseline"]["validation_error_pct"]
