@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gmsfric.loop import LoopConfig, run_loop
+from gmsfric.loop import CATALOGUE, LoopConfig, run_loop
 from gmsfric.loop.rigs import Rig, rig_pair, simulate_rig
 
 CFG = LoopConfig(progress=False)
@@ -44,6 +44,9 @@ def test_planted_effect_is_named_and_lowers_heldout_error(rig):
     step = next(s for s in res.steps if s.accepted and s.effect == rig.effect)
     assert step.evidence["t_heldout"] >= CFG.t_threshold
     assert step.evidence["delta_bic"] < 0
+    if CATALOGUE[rig.effect].whole_motion:
+        # a real delay or resonance gains on the rows clear of reversals too
+        assert step.evidence["t_heldout_away_from_reversals"] >= CFG.t_threshold
 
 
 @pytest.mark.parametrize("rig", [Rig(seed=21, fs=1000.0), Rig(seed=22, fs=500.0, mass=150.0, fc=35.0, fv=300.0, quantization=5e-6),

@@ -144,6 +144,10 @@ class Effect:
         ``refine(est_signals) -> [(low, high), ...]``: bounds of the nonlinear parameters when
         they are refined continuously from the best grid variant (a sharp resonance between
         two grid points fits poorly and extrapolates badly).
+    whole_motion : bool
+        The effect acts on the whole motion (a delay, a resonance), so its held-out gain must hold
+        on the rows clear of reversals and stops too; what gains only there is the switch of
+        friction seen through the velocity filter.
     """
 
     name: str
@@ -152,6 +156,7 @@ class Effect:
     variants: Callable[[LinearModel, Signals, Array], list[LinearModel]]
     physical: Callable[[dict[str, dict[str, float]], Signals], str | None] | None = None
     refine: Callable[[Signals], list[tuple[float, float]]] | None = None
+    whole_motion: bool = False
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
@@ -431,11 +436,11 @@ CATALOGUE: dict[str, Effect] = {
         Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
-        Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay),
+        Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
-               refine=lambda s: [(1.0, 0.45 * s.fs / s.dec), (0.01, 0.7)]),
+               refine=lambda s: [(1.0, 0.45 * s.fs / s.dec), (0.01, 0.7)], whole_motion=True),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }

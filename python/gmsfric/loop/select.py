@@ -52,7 +52,7 @@ from .._progress import Progress
 from .._validate import count, finite
 from ..errors import IdentificationError, InvalidInputError
 from .data import AxisData
-from .effects import CATALOGUE, Effect
+from .effects import CATALOGUE, Effect, dip_resolution
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
 from .residuals import Finding, analyse
 from .results import LoopResult, Step
@@ -291,9 +291,9 @@ def paired_chunk_test(r0: Array, r1: Array, chunk: int) -> tuple[float, float, i
     return float(t), p, m
 
 
-def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int) -> HeldOut:
-    """Compare two fitted models on the moving held-out rows."""
-    rows = split.val_test
+def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, rows: Array | None = None) -> HeldOut:
+    """Compare two fitted models on the moving held-out rows (or on ``rows`` of them)."""
+    rows = split.val_test if rows is None else rows
     y = split.val.y[rows]
     r0 = y - before.predict(split.val)[rows]
     r1 = y - after.predict(split.val)[rows]
@@ -642,11 +642,14 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
                     st.steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
             level = cfg.level(rnd, len(applicable))
+            # held-out rows clear of reversals and stops (faster than the blur of the filter)
+            far = split.val_test & (np.abs(split.val.rows["qd"]) >= dip_resolution(split.est))
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
                 _fit(m, split)
                 e_est, e_val = split.errors(m)
                 h = heldout(split, st.model, m, st.chunk)
+                h_far = heldout(split, st.model, m, st.chunk, far) if eff.whole_motion else None
                 dbic = n_est * np.log(_sse(m, split) / sse_cur) + (m.n_params - st.model.n_params) * np.log(n_est)
                 change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
                 ev: dict[str, Any] = {}
@@ -665,6 +668,11 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 if h.p > level or h.t < cfg.t_threshold:
                     reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {level:.2g})" if h.p > level
                                    else f"held-out t = {h.t:.2f} < {cfg.t_threshold}")
+                if h_far is not None:
+                    ev["t_heldout_away_from_reversals"] = round(h_far.t, 2)
+                    if h_far.p > level or h_far.t < cfg.t_threshold:
+                        reasons.append(f"not confirmed away from reversals (t = {h_far.t:.2f}, p = {h_far.p:.2g}): it acts on the whole "
+                                       "motion, and a gain only where the axis reverses or sticks is the switch of friction")
                 if dbic >= 0:
                     reasons.append(f"BIC does not decrease ({dbic:+.1f})")
                 if implausible is not None:
