@@ -24,6 +24,9 @@ The loop runs in named stages (:func:`run_loop`):
      ``alpha / 2**r`` of the family-wise level, split equally (Bonferroni) over the ``K``
      effects it tests, so an effect enters only with ``p <= alpha / (2**r K)``; the sum over
      rounds stays below ``alpha``;
+   * an effect that acts on the whole motion (a delay, a resonance) must pass the same test on the
+     held-out rows clear of reversals and stops: what gains only there is the switch of friction
+     seen through the velocity filter;
    * the held-out error must also drop by ``min_gain`` (relative), the BIC on the estimation
      rows must decrease, the effect's own parameters must be physical, and the baseline's
      physical parameters must stay plausible: mass and effective viscous coefficient physical,
@@ -738,7 +741,8 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
     }
     res.selection = {
         "rule": "forward selection; an effect enters when its held-out chunk test (Newey-West t) has p <= alpha / (2**round x effects tested), "
-                "its held-out gain >= min_gain, BIC decreases and the baseline parameters stay plausible; the best held-out gain enters; "
+                "its held-out gain >= min_gain, BIC decreases and the baseline parameters stay plausible (a delay or a resonance must also pass "
+                "on the held-out rows clear of reversals and stops); the best held-out gain enters; "
                 "then joint refit of every accepted effect's grid parameters and backward elimination (stay with p <= alpha)",
         "alpha": cfg.alpha, "t_threshold": cfg.t_threshold, "min_gain": cfg.min_gain, "max_parameter_ratio": cfg.max_parameter_ratio,
         "chunk_rows": st.chunk,
