@@ -652,7 +652,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 _fit(m, split)
                 e_est, e_val = split.errors(m)
                 h = heldout(split, st.model, m, st.chunk)
-                h_far = heldout(split, st.model, m, st.chunk, far) if eff.whole_motion else None
+                h_far = heldout(split, st.model, m, st.chunk, far) if eff.whole_motion and far.sum() >= 2 * st.chunk else None
                 dbic = n_est * np.log(_sse(m, split) / sse_cur) + (m.n_params - st.model.n_params) * np.log(n_est)
                 change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
                 ev: dict[str, Any] = {}
@@ -671,6 +671,8 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 if h.p > level or h.t < cfg.t_threshold:
                     reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {level:.2g})" if h.p > level
                                    else f"held-out t = {h.t:.2f} < {cfg.t_threshold}")
+                if eff.whole_motion and h_far is None:
+                    reasons.append("too few held-out rows clear of reversals and stops to confirm it")
                 if h_far is not None:
                     ev["t_heldout_away_from_reversals"] = round(h_far.t, 2)
                     if h_far.p > level or h_far.t < cfg.t_threshold:
