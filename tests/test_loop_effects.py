@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from gmsfric.loop.data import AxisData
-from gmsfric.loop.effects import _play, _presliding, _stribeck_ok, dip_resolution, direction_resolution, velocity_resolution
+from gmsfric.loop import LoopConfig, run_loop
+from gmsfric.loop.effects import _play, _presliding, _stribeck_ok, dip_resolution, direction_resolution, stribeck_fall, velocity_resolution
+from gmsfric.loop.rigs import Rig, simulate_rig
 from gmsfric.loop.idim import LinearModel, Signals
 
 FS = 1000.0
@@ -70,6 +72,35 @@ def test_a_dip_narrower_than_the_filter_blur_is_not_a_stribeck_curve():
     assert _stribeck_ok(_params(5.0, -2.0, 1.5 * dip), s) is None
     # the friction at rest must stay positive whatever the width
     assert "not positive" in _stribeck_ok(_params(5.0, -6.0, 10 * dip), s)
+
+
+def test_a_hump_the_viscous_slope_outweighs_is_not_a_stribeck_curve():
+    s, _ = _stick_at_reversal()
+    vs, ds = 0.1 * s.v_scale, 2.0
+    p = _params(5.0, ds, vs)
+    # without viscous friction the curve falls by (nearly) all of Fs - Fc
+    assert stribeck_fall(p, s.v_scale) == pytest.approx(ds * (1.0 - np.exp(-10.0)), rel=1e-9)  # delta = 1
+    # a gentle slope leaves most of the fall: still a Stribeck curve
+    assert _stribeck_ok({**p, "Fv": {"value": 0.2 * ds / vs, "std": 0.1}}, s) is None
+    # a slope steeper than the hump's steepest descent: friction only rises with speed
+    steep = {**p, "Fv": {"value": 2.0 * ds / vs, "std": 0.1}}
+    assert stribeck_fall(steep, s.v_scale) == 0.0
+    assert "never falls" in _stribeck_ok(steep, s)
+    # an asymmetry counts in the direction where the viscous slope is smaller
+    asym = {**steep, "dFv_asym": {"value": 1.9 * ds / vs, "std": 0.1}}
+    assert _stribeck_ok(asym, s) is None
+
+
+def test_a_drag_that_grows_with_the_square_of_the_speed_is_not_named_stribeck():
+    """A v|v| drag (outside the catalogue) bends the friction curve upwards; a hump plus more
+    viscous friction fits it, but never makes the friction fall, so no Stribeck curve is named."""
+    rig = Rig(seed=4, fs=1000.0, duration=16.0)
+    d = simulate_rig(rig)
+    qd = np.gradient(d.position, d.t)
+    v = float(np.percentile(np.abs(qd), 99))
+    drag = 2.0 * rig.fc * qd * np.abs(qd) / v**2
+    res = run_loop(AxisData(d.t, d.position, d.force + drag, source="drag rig"), None, LoopConfig(progress=False, effects=("stribeck",)))
+    assert "stribeck" not in res.effects
 
 
 def test_presliding_is_still_found_when_the_position_is_noisy_rather_than_quantised():

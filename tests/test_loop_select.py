@@ -139,3 +139,58 @@ def test_an_effect_that_corrupts_the_baseline_is_refused():
     bad = LinearModel(list(m0.terms), theta=m0.theta * np.array([1.0, 1.0, 0.3, 1.0]), cov=m0.cov)
     change, why = _plausibility(phys, std, bad, split, cfg)
     assert why is not None and "Coulomb level" in why and change["Fc"]["ratio"] == pytest.approx(0.3, rel=1e-3)
+
+
+def _pair_state(force_extra, seed: int = 3):
+    """Loop state after the baseline on a clean rig whose force carries ``force_extra(q, qd)``,
+    and every candidate's best variant (as a round of the loop computes them)."""
+    from gmsfric._progress import Progress
+    from gmsfric.loop.effects import CATALOGUE, dip_resolution
+    from gmsfric.loop.select import _best_variant, _cv, _residual_rows, stage_baseline, stage_prepare
+
+    d = simulate_rig(Rig(seed=seed, fs=1000.0, duration=16.0))
+    qd = np.gradient(d.position, d.t)
+    data = AxisData(d.t, d.position, d.force + force_extra(d.position, qd), source="pair rig")
+    cfg = LoopConfig(progress=False)
+    split, chunk = stage_prepare(data, None, cfg)
+    st = stage_baseline(split, chunk, cfg)
+    fnd, r_est = _residual_rows(st, cfg)
+    cv_cur = _cv(st.model, split, cfg)
+
+    def cands(*names: str):
+        out = []
+        for n in names:
+            m, cv, _ = _best_variant(CATALOGUE[n], st.model, st, cfg, r_est)
+            out.append((1.0 - cv / cv_cur, CATALOGUE[n], m))
+        return out
+
+    far = split.val_test & (np.abs(split.val.rows["qd"]) >= dip_resolution(split.est))
+    return st, cfg, cands, far, fnd, Progress("test", enabled=False)
+
+
+def _cogging(q, qd):
+    return 6.0 * np.sin(2 * np.pi * q / 0.021)
+
+
+def test_a_pair_enters_when_each_effect_passes_given_the_other():
+    from gmsfric.loop.select import _pair_step
+
+    st, cfg, cands, far, fnd, prog = _pair_state(lambda q, qd: _cogging(q, qd) + 40.0 * np.abs(qd))
+    assert _pair_step(st, cfg, 1, cands("position_dependent_force", "asymmetric_friction"), far, fnd, prog)
+    assert set(st.model.effects) == {"position_dependent_force", "asymmetric_friction"}
+    entered = [s for s in st.steps if s.accepted]
+    assert {s.evidence["entered_with"] for s in entered} == {"position_dependent_force", "asymmetric_friction"}
+    assert all(s.evidence["given_other"]["p_heldout"] <= s.evidence["level"] for s in entered)
+
+
+def test_a_real_effect_cannot_carry_a_false_one_into_the_model():
+    """The pair (real cogging, absent drift) gains a lot on held-out data, all of it the cogging's:
+    the drift, tested given the cogging, does not pass, so the pair does not enter (even when the
+    estimation rows happened to favour the drift, which the screening would otherwise catch)."""
+    from gmsfric.loop.select import _pair_step
+
+    st, cfg, cands, far, fnd, prog = _pair_state(_cogging)
+    before = list(st.model.effects)
+    favoured = [(1.0, eff, m) for _, eff, m in cands("position_dependent_force", "friction_drift")]
+    assert not _pair_step(st, cfg, 1, favoured, far, fnd, prog)
+    assert st.model.effects == before and not any(s.accepted for s in st.steps)

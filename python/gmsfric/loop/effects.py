@@ -90,8 +90,11 @@ def _play(s: Signals, delta: float) -> Array:
     axis does.  The zero-phase filtered position cannot be used: it leaks the motion after a stick
     into the stick, where the force crosses the stiction band with the axis at rest, and an
     element driven by it fits that ramp as "pre-sliding" on any axis that sticks at reversals."""
-    m = _models.MaxwellSlip(k=[1.0 / delta], w=[1.0])
-    return _models.simulate_friction(m, s.t + 0.0, np.asarray(s.data.position, dtype=float))
+    def make() -> Array:
+        m = _models.MaxwellSlip(k=[1.0 / delta], w=[1.0])
+        return _models.simulate_friction(m, s.t + 0.0, np.asarray(s.data.position, dtype=float))
+
+    return s.cached(("play", float(delta)), make)
 
 
 def _compliance(s: Signals, fn: float, zeta: float) -> Array:
@@ -244,10 +247,13 @@ def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     if not hi > lo:
         return out
     for dmax in np.geomspace(lo, hi, max(2, min(12, int(np.ceil(4 * np.log10(hi / lo))) + 1))):
-        deltas = tuple(float(d) for d in (dmax, dmax / 5.0, dmax / 25.0) if d >= lo)
-        n = len(deltas)
-        t = Term("presliding_hysteresis", tuple(f"w_block{i + 1}" for i in range(n)), lambda s, h: np.column_stack([_play(s, d) for d in h]), deltas, tuple(f"Delta_block{i + 1}" for i in range(n)))
-        out.append(_add(model, t, "presliding_hysteresis"))
+        grid = tuple(float(d) for d in (dmax, dmax / 5.0, dmax / 25.0) if d >= lo)
+        # one, two and three blocks: break forces are positive, and a set of blocks that only
+        # fits with a negative one is refused, while a subset of them may be the contact
+        for n in range(1, len(grid) + 1):
+            t = Term("presliding_hysteresis", tuple(f"w_block{i + 1}" for i in range(n)), lambda s, h: np.column_stack([_play(s, d) for d in h]),
+                     grid[:n], tuple(f"Delta_block{i + 1}" for i in range(n)))
+            out.append(_add(model, t, "presliding_hysteresis"))
     return out
 
 
@@ -407,10 +413,37 @@ def _stribeck_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     ds = p["Fs_minus_Fc"]["value"] if "Fs_minus_Fc" in p else 0.0
     if fc + ds <= 0:
         return f"friction level at rest Fs = Fc + (Fs - Fc) = {fc + ds:.3g} is not positive"
+    if ds > 0 and "Fc" in p and fc <= 0:
+        return f"the sliding friction level Fc = {fc:.3g} is not positive: the hump carries all of the friction"
     if ds < 0 and "vs" in p and p["vs"]["value"] < (dip := dip_resolution(s)):
         return (f"a dip (Fs - Fc = {ds:.3g}) of width vs = {p['vs']['value']:.3g} is narrower than the velocity filter's "
                 f"blur through a reversal ({dip:.3g}): the switch of sign(qd) looks like that")
+    if ds > 0 and "vs" in p and (fall := stribeck_fall(p, s.v_scale)) < HUMP_MIN_FALL * ds:
+        return (f"the friction never falls below its level at rest (by {fall:.3g}, less than {HUMP_MIN_FALL:g} x (Fs - Fc) = {ds:.3g}) "
+                f"within the run's speeds: the viscous slope outweighs the hump, a convex velocity curve (drag) fits the same")
     return None
+
+
+#: Smallest fall of the friction below its level at rest, as a fraction of ``Fs - Fc``, for a hump
+#: to be a Stribeck curve.
+HUMP_MIN_FALL = 0.1
+
+
+def stribeck_fall(p: dict[str, dict[str, float]], v_max: float) -> float:
+    """How far the sliding friction ``(Fs - Fc) exp(-|v/vs|^delta) + Fv' v`` falls below its level
+    at rest for speeds up to ``v_max``, in the direction with the smaller viscous slope ``Fv'``.
+
+    What makes a Stribeck curve is friction that *decreases* with speed out of rest (the cause of
+    stick-slip).  A "hump" that the viscous slope outweighs everywhere is a friction curve that
+    only bends upward: that is also what a drag growing with the square of the speed looks like,
+    and the data cannot tell the two apart."""
+    def value(name: str) -> float:
+        return float(p[name]["value"]) if name in p else 0.0
+
+    slope = value("Fv") - abs(value("dFv_asym"))
+    v = np.linspace(0.0, max(v_max, 0.0), 512)
+    curve = value("Fs_minus_Fc") * curves.stribeck_shape(v, p["vs"]["value"], p.get("stribeck_delta", {"value": 1.0})["value"]) + slope * v
+    return float(curve[0] - curve.min())
 
 
 def _load_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:

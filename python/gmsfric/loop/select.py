@@ -687,7 +687,10 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 if not reasons:
                     passing.append((h.gain, step, m))
             if not passing:
-                break
+                if len(st.model.effects) + 2 > cfg.max_effects or not _pair_step(st, cfg, rnd, cands, far, fnd, prog):
+                    break
+                rnd += 1  # the pair spent the next round's share of the level
+                continue
             passing.sort(key=lambda c: -c[0])
             _, step, m = passing[0]
             step.accepted = True
@@ -701,6 +704,104 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             _joint_refit(st, cfg, rnd)
             _backward(st, cfg, rnd, step.effect)
             step.parameters = st.model.params() if step.effect in st.model.effects else step.parameters
+
+
+def _combine(a: LinearModel, b: LinearModel, b_name: str, dt: float) -> LinearModel:
+    """Variant ``a`` with effect ``b_name`` of variant ``b`` added (both extend the same model)."""
+    if b_name == "input_delay":
+        out = _with_delay(a, b.delay, dt)
+    else:
+        out = a.copy()
+        out.terms = out.terms + [t for t in b.terms if t.name == b_name]
+    out.effects = out.effects + [b_name]
+    return out
+
+
+def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, Effect, LinearModel]], far: Array,
+               fnd: dict[str, Finding], prog: Progress) -> bool:
+    """When no single effect passes, two may enter together: effects that are confounded (a
+    position-dependent friction and force, a drift and a Stribeck curve) can each fail alone, the
+    one absorbing part of the other's force the wrong way.  A pair of effects that each gain on
+    the estimation rows is fitted jointly; it enters when *each* of the two passes the held-out
+    test given the other (so that a real effect cannot carry a false one in), at the level of the
+    next round split over the pairs tried, and the pair together passes the minimum gain, the BIC
+    and the plausibility of the baseline.  Returns whether a pair entered."""
+    split, dt = st.split, st.split.est.dt
+    screened = [(eff, m) for g, eff, m in cands if g > 0]
+    pairs = [(screened[i], screened[j]) for i in range(len(screened)) for j in range(i + 1, len(screened))]
+    if not pairs:
+        return False
+    level = cfg.level(rnd + 1, len(pairs))
+    n_est = int(split.est_fit.sum())
+    sse_cur = _sse(st.model, split)
+    best: tuple[float, list[Step], LinearModel] | None = None
+    for (ea, ma), (eb, mb) in pairs:
+        prog.update(note=f"round {rnd}: {ea.name} + {eb.name}")
+        both = _combine(ma, mb, eb.name, dt)
+        try:
+            _fit(both, split)
+            if any(e.check(both, split.est) is not None for e in (ea, eb)):
+                continue
+        except (IdentificationError, np.linalg.LinAlgError, ValueError):
+            continue
+        h = heldout(split, st.model, both, st.chunk)
+        dbic = n_est * np.log(_sse(both, split) / sse_cur) + (both.n_params - st.model.n_params) * np.log(n_est)
+        change, implausible = _plausibility(st.base_phys, st.base_std, both, split, cfg)
+        if h.gain < cfg.min_gain or dbic >= 0 or implausible is not None:
+            continue
+        marginals: dict[str, dict[str, Any]] = {}
+        passed = True
+        for eff, other in ((ea, eb), (eb, ea)):
+            if eff.name == "input_delay":
+                reduced = _with_delay(both, st.model.delay, dt)
+                reduced.extras = dict(st.model.extras)
+            else:
+                reduced = both.copy()
+                reduced.terms = [t for t in both.terms if t.name != eff.name]
+            reduced.effects = [e for e in both.effects if e != eff.name]
+            _fit(reduced, split)
+            hm = heldout(split, reduced, both, st.chunk)
+            ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain > 0
+            mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
+            if eff.whole_motion:
+                hf = heldout(split, reduced, both, st.chunk, far) if far.sum() >= 2 * st.chunk else None
+                ok = ok and hf is not None and hf.p <= level and hf.t >= cfg.t_threshold
+                mg["t_heldout_away_from_reversals"] = round(hf.t, 2) if hf is not None else None
+            marginals[eff.name] = mg
+            if not ok:
+                passed = False
+                break
+        if not passed:
+            continue
+        if best is not None and h.gain <= best[0]:
+            continue
+        e_est, e_val = split.errors(both)
+        steps = []
+        for eff, other in ((ea, eb), (eb, ea)):
+            ev: dict[str, Any] = {}
+            f = fnd.get(eff.evidence)
+            if f is not None:
+                ev["residual_test"] = f.as_dict()
+            ev.update(entered_with=other.name, validation_gain=round(h.gain, 5), t_heldout=round(h.t, 2), p_heldout=float(f"{h.p:.3g}"),
+                      given_other=marginals[eff.name], level=float(f"{level:.3g}"), delta_bic=round(float(dbic), 1), baseline_parameters=change,
+                      moving_rows_error_pct={"estimation": round(split.errors_moving(both)[0], 4), "validation": round(h.error_after, 4)})
+            mg = marginals[eff.name]
+            reason = (f"entered together with {other.name} (neither passes alone): held-out error {h.error_before:.3f} -> {h.error_after:.3f} % "
+                      f"on moving rows; given {other.name} t = {mg['t_heldout']:.1f}, p = {mg['p_heldout']:.2g} <= {level:.2g}; BIC {dbic:+.1f}")
+            steps.append(Step(rnd, eff.name, True, reason, ev, e_est, e_val, both.params(), both))
+        best = (h.gain, steps, both)
+    if best is None:
+        return False
+    _, steps, both = best
+    st.steps.extend(steps)
+    st.model = both
+    st.err = split.errors(both)
+    _joint_refit(st, cfg, rnd)
+    _backward(st, cfg, rnd, steps[1].effect)
+    for s in steps:
+        if s.effect in st.model.effects:
+            s.parameters = st.model.params()
+    return True
 
 
 def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
