@@ -9,7 +9,7 @@ import pytest
 
 from gmsfric.loop.data import AxisData
 from gmsfric.loop import LoopConfig, run_loop
-from gmsfric.loop.effects import _play, _presliding, _stribeck_ok, dip_resolution, direction_resolution, stribeck_fall, velocity_resolution
+from gmsfric.loop.effects import CATALOGUE, _compliance_variants, _play, _presliding, _stribeck_ok, dip_resolution, direction_resolution, stribeck_fall, velocity_resolution
 from gmsfric.loop.rigs import Rig, simulate_rig
 from gmsfric.loop.idim import LinearModel, Signals
 
@@ -120,3 +120,15 @@ def test_presliding_is_still_found_when_the_position_is_noisy_rather_than_quanti
         result = run_loop(noisy(est), noisy(val), LoopConfig(progress=False)).to_dict()
     assert result["final"]["effects"] == ["presliding_hysteresis"]
     assert result["final"]["validation_error_pct"] < 0.7 * result["baseline"]["validation_error_pct"]
+
+
+@pytest.mark.parametrize("fs", [250.0, 1000.0, 5000.0])
+def test_no_resonance_is_fitted_above_the_filter_cut_off(fs):
+    """The zero-phase filter removes what lies above its cut-off from force and motion alike: a
+    resonance there would fit the filter's transition band."""
+    t = np.arange(0.0, 6.0, 1.0 / fs)
+    q = 0.05 * np.sin(2 * np.pi * 0.5 * t)
+    s = Signals(AxisData(t, q, 10.0 * np.sign(np.cos(2 * np.pi * 0.5 * t)), source="sine"))
+    fns = [tm.hyper[0] for m in _compliance_variants(LinearModel([]), s, np.zeros(s.n_rows)) for tm in m.terms]
+    assert fns and max(fns) <= s.cutoff * (1 + 1e-12) and max(fns) <= 0.4 * s.fs / s.dec * (1 + 1e-12)
+    assert CATALOGUE["compliance"].refine(s)[0][1] <= s.cutoff

@@ -391,7 +391,9 @@ def _heating_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearMo
 
 def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
-    f_hi = 0.4 * s.fs / s.dec
+    f_hi = resonance_limit(s)
+    if not f_hi > 2.0:
+        return out
     # a resonance: damping ratios that leave a peak (above ~0.7 a "load on a spring" is an added
     # mass and a low-pass filter, which fits any smooth lag)
     for fn in np.geomspace(2.0, f_hi, 18):
@@ -399,6 +401,14 @@ def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[Linea
             t = Term("compliance", ("m_load",), lambda s, h: _compliance(s, h[0], h[1]), (float(fn), zeta), ("fn_hz", "zeta"))
             out.append(_add(model, t, "compliance"))
     return out
+
+
+def resonance_limit(s: Signals) -> float:
+    """Highest resonance the rows resolve: below their Nyquist frequency and below the cut-off of
+    the zero-phase filter, which removes what lies above it from the force and the motion alike
+    (a "resonance" fitted there fits the filter's transition band: whatever sharp events, such
+    as sticking, leave in it)."""
+    return min(0.4 * s.fs / s.dec, s.cutoff)
 
 
 def _offset(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
@@ -473,7 +483,7 @@ CATALOGUE: dict[str, Effect] = {
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
-               refine=lambda s: [(1.0, 0.45 * s.fs / s.dec), (0.01, 0.7)], whole_motion=True),
+               refine=lambda s: [(1.0, resonance_limit(s)), (0.01, 0.7)], whole_motion=True),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }
