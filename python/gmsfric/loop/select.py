@@ -39,6 +39,10 @@ The loop runs in named stages (:func:`run_loop`):
    chosen again given the others (joint refit), and every earlier effect is tested again on the
    held-out rows given all the others (backward elimination, kept only with ``p <= alpha`` and
    the minimum gain): an effect that another one explains better leaves the model.
+
+   When no single effect passes, two confounded effects may enter together: each must pass the
+   held-out test given the other (level of the next round, split over the pairs tried), so a
+   real effect cannot carry a false one in (:func:`_pair_step`).
 4. **report** -- residual analysis of the final model; significant structure left is listed as
    unexplained, with the variable it depends on.
 """
@@ -723,9 +727,9 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     position-dependent friction and force, a drift and a Stribeck curve) can each fail alone, the
     one absorbing part of the other's force the wrong way.  A pair of effects that each gain on
     the estimation rows is fitted jointly; it enters when *each* of the two passes the held-out
-    test given the other (so that a real effect cannot carry a false one in), at the level of the
-    next round split over the pairs tried, and the pair together passes the minimum gain, the BIC
-    and the plausibility of the baseline.  Returns whether a pair entered."""
+    test given the other, with the minimum gain (so that a real effect cannot carry a false one in),
+    at the level of the next round split over the pairs tried, and the pair together passes the
+    BIC and the plausibility of the baseline.  Returns whether a pair entered."""
     split, dt = st.split, st.split.est.dt
     screened = [(eff, m) for g, eff, m in cands if g > 0]
     pairs = [(screened[i], screened[j]) for i in range(len(screened)) for j in range(i + 1, len(screened))]
@@ -761,7 +765,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             reduced.effects = [e for e in both.effects if e != eff.name]
             _fit(reduced, split)
             hm = heldout(split, reduced, both, st.chunk)
-            ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain > 0
+            ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain >= cfg.min_gain
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
             if eff.whole_motion:
                 hf = heldout(split, reduced, both, st.chunk, far) if far.sum() >= 2 * st.chunk else None
