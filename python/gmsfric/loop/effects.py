@@ -201,12 +201,13 @@ def velocity_resolution(s: Signals) -> float:
 
 
 def dip_resolution(s: Signals) -> float:
-    """Narrowest low-speed *dip* of friction (``Fs < Fc``) the data resolve: the speed the axis
-    gains at its rms acceleration within one period of the velocity filter, and three times the
-    standstill speed.  Through a reversal or a stick the zero-phase filter spreads the change of
-    ``sign(qd)`` over about that window, and the force's switch, seen against the filtered
-    velocity, looks exactly like friction that is lower at low speed; a hump (``Fs > Fc``) is
-    the opposite of that blur, so it may be as narrow as :func:`velocity_resolution`."""
+    """Speed band blurred through a reversal: the speed the axis gains at its rms acceleration
+    within one period of the velocity filter, and three times the standstill speed.  Through a
+    reversal or a stick the zero-phase filter spreads the change of ``sign(qd)`` over about that
+    window, and the force's switch, seen against the filtered velocity, looks exactly like
+    friction that is lower at low speed: a low-speed *dip* of friction (``Fs < Fc``) must keep at
+    least half its depth beyond this speed.  A hump (``Fs > Fc``) is the opposite of that blur, so
+    it may be as narrow as :func:`velocity_resolution`."""
     return max(3.0 * s.rest_speed, _rms_acceleration(s) / s.cutoff)
 
 
@@ -425,9 +426,9 @@ def _stribeck_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
         return f"friction level at rest Fs = Fc + (Fs - Fc) = {fc + ds:.3g} is not positive"
     if ds > 0 and "Fc" in p and fc <= 0:
         return f"the sliding friction level Fc = {fc:.3g} is not positive: the hump carries all of the friction"
-    if ds < 0 and "vs" in p and p["vs"]["value"] < (dip := dip_resolution(s)):
-        return (f"a dip (Fs - Fc = {ds:.3g}) of width vs = {p['vs']['value']:.3g} is narrower than the velocity filter's "
-                f"blur through a reversal ({dip:.3g}): the switch of sign(qd) looks like that")
+    if ds < 0 and "vs" in p and curves.stribeck_shape(dip := dip_resolution(s), p["vs"]["value"], p.get("stribeck_delta", {"value": 1.0})["value"]) < 0.5:
+        return (f"a dip (Fs - Fc = {ds:.3g}) of width vs = {p['vs']['value']:.3g} keeps less than half its depth beyond the velocity "
+                f"filter's blur through a reversal ({dip:.3g}): the switch of sign(qd) looks like that")
     if ds > 0 and "vs" in p and (fall := stribeck_fall(p, s.v_scale)) < HUMP_MIN_FALL * ds:
         return (f"the friction never falls below its level at rest (by {fall:.3g}, less than {HUMP_MIN_FALL:g} x (Fs - Fc) = {ds:.3g}) "
                 f"within the run's speeds: the viscous slope outweighs the hump, a convex velocity curve (drag) fits the same")
