@@ -850,7 +850,9 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
         "rule": "forward selection; an effect enters when its held-out chunk test (Newey-West t) has p <= alpha / (2**round x effects tested), "
                 "its held-out gain >= min_gain, BIC decreases and the baseline parameters stay plausible (a delay or a resonance must also pass "
                 "on the held-out rows clear of reversals and stops); the best held-out gain enters; "
-                "then joint refit of every accepted effect's grid parameters and backward elimination (stay with p <= alpha)",
+                "then joint refit of every accepted effect's grid parameters and backward elimination (stay with p <= alpha); "
+                "when no single effect passes, a pair of effects enters when each passes given the other (p <= alpha / (2**(round + 1) x pairs "
+                "tried), held-out gain >= min_gain) and the pair passes the BIC and plausibility tests",
         "alpha": cfg.alpha, "t_threshold": cfg.t_threshold, "min_gain": cfg.min_gain, "max_parameter_ratio": cfg.max_parameter_ratio,
         "chunk_rows": st.chunk,
     }
