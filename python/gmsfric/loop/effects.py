@@ -220,7 +220,7 @@ def direction_resolution(s: Signals) -> float:
 
 
 def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
-    out = []
+    out: list[LinearModel] = []
     lo, hi = velocity_resolution(s), 0.5 * s.v_scale
     if not hi > lo:
         return out
@@ -238,7 +238,7 @@ PRESLIDING_MAX_FRACTION = 0.01
 
 
 def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
-    out = []
+    out: list[LinearModel] = []
     span = float(np.ptp(s.q))
     # from what the data resolve to the elastic range's upper bound: every block's range spans
     # two resolution steps and the distance the axis travels through a reversal within the
@@ -391,7 +391,7 @@ def _heating_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearMo
 
 
 def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
-    out = []
+    out: list[LinearModel] = []
     f_hi = resonance_limit(s)
     if not f_hi > 2.0:
         return out
