@@ -65,3 +65,17 @@ def test_the_jittered_rotary_log_is_resampled_and_reported_in_rotary_units(ci_ru
     p = d["final"]["parameters"]
     assert p["Fv"]["unit"] == "N m s/rad" and p["M"]["unit"] == "kg m^2" and p["Fc"]["unit"] == "N m"
     assert d["standstill"]["rest_speed_unit"] == "rad/s"
+
+
+def test_a_clean_rigs_own_detectable_presliding_is_not_scored_false():
+    """A clean rig whose Maxwell-slip contact has pre-sliding the truth's own column finds
+    detectable (held-out gain >= 10 %) has that effect natively; below the rule it is false."""
+    from loop_campaign.truth import DETECTABLE
+
+    def result(latent: float) -> dict:
+        return {"planted": [], "native": [], "accepted": ["presliding_hysteresis", "compliance"],
+                "truth": {"effects": {}, "info": {"latent_presliding": latent}}}
+
+    assert false_effects(result(DETECTABLE + 0.05)) == ["compliance"]
+    assert false_effects(result(DETECTABLE - 0.05)) == ["presliding_hysteresis", "compliance"]
+    assert false_effects({**result(0.3), "truth": {"effects": {}}}) == ["presliding_hysteresis", "compliance"]

@@ -1,7 +1,8 @@
 """Scoring: recall per effect, false effects per case, clean and pair rates, confusion matrix.
 
 A case's *false* effects are those ``gmsfric loop`` accepted (``final.effects``) that were not
-planted and are not native to real data: ``offset`` and ``input_delay`` included.  The loop's
+planted and are not native (:func:`native`: the real EMPS axis' own effects, and the detectable
+pre-sliding of a clean rig's own contact): ``offset`` and ``input_delay`` included.  The loop's
 half-sample ``alignment`` (reported outside ``final.effects``) is not counted as an effect; its
 rate is shown for information.  Runs that exit non-zero are failures: listed with their last
 error line, excluded from the rates over completed runs and counted as misses in the
@@ -14,13 +15,24 @@ from collections import Counter
 from typing import Any
 
 from .cases import CATALOGUE
+from .truth import DETECTABLE
 
 #: The issue's targets.
 TARGETS = {"recall": 0.90, "false": 0.02, "clean": 0.98, "pairs": 0.80}
 
 
+def native(r: dict[str, Any]) -> list[str]:
+    """Effects the case has without planting: the real EMPS axis' own (``r["native"]``), and the
+    pre-sliding of a clean rig's Maxwell-slip, GMS or LuGre contact when the truth's column of the
+    contact itself meets the detectability rule (``truth.info.latent_presliding``)."""
+    out = list(r["native"])
+    if r.get("truth", {}).get("info", {}).get("latent_presliding", 0.0) >= DETECTABLE:
+        out.append("presliding_hysteresis")
+    return out
+
+
 def false_effects(r: dict[str, Any]) -> list[str]:
-    ok = set(r["planted"]) | set(r["native"])
+    ok = set(r["planted"]) | set(native(r))
     return [e for e in r["accepted"] if e not in ok]
 
 
@@ -90,7 +102,7 @@ def confusion(results: list[dict[str, Any]]) -> tuple[list[str], list[tuple[str,
         if r["status"] != "ok":
             row[cols.index("fail")] += 1
             return
-        acc = [e for e in r["accepted"] if e not in r["native"]]
+        acc = [e for e in r["accepted"] if e not in native(r)]
         for e in acc:
             if e in cols:
                 row[cols.index(e)] += 1
