@@ -134,3 +134,25 @@ def test_no_resonance_is_fitted_above_the_filter_cut_off(fs):
     fns = [tm.hyper[0] for m in _compliance_variants(LinearModel([]), s, np.zeros(s.n_rows)) for tm in m.terms]
     assert fns and max(fns) <= s.cutoff * (1 + 1e-12) and max(fns) <= 0.4 * s.fs / s.dec * (1 + 1e-12)
     assert CATALOGUE["compliance"].refine(s)[0][1] <= s.cutoff
+
+
+def test_heating_is_refused_when_a_memory_shorter_than_a_thermal_one_fits_best():
+    """Heating is friction that follows the speed low-passed over seconds.  On a rig whose
+    friction follows the current speed (a v|v| drag), a memory of 0.1 s fits the estimation rows
+    best: heating is then refused, not replaced by its nearest thermal variant (which absorbed the
+    drag on the campaign's drag rigs).  On a rig with heating, a thermal memory fits best."""
+    from gmsfric.loop.select import _best_variant, _residual_rows, stage_baseline, stage_prepare
+
+    rig = Rig(seed=4, fs=1000.0, duration=16.0)
+    d = simulate_rig(rig)
+    qd = np.gradient(d.position, d.t)
+    v = float(np.percentile(np.abs(qd), 99))
+    cfg = LoopConfig(progress=False)
+    split, chunk = stage_prepare(AxisData(d.t, d.position, d.force + 2.0 * rig.fc * qd * np.abs(qd) / v**2, source="drag"), None, cfg)
+    st = stage_baseline(split, chunk, cfg)
+    _, r_est = _residual_rows(st, cfg)
+    m, _, why = _best_variant(CATALOGUE["heating"], st.model, st, cfg, r_est)
+    assert m is None and "shorter than a thermal one" in why
+
+    res = run_loop(simulate_rig(Rig(effect="heating", seed=1, fs=1000.0, duration=24.0)), None, LoopConfig(progress=False, effects=("heating",)))
+    assert res.effects == ["heating"] and res.final.params()["heating_tau_s"]["value"] >= 1.0

@@ -151,6 +151,11 @@ class Effect:
         The effect acts on the whole motion (a delay, a resonance), so its held-out gain must hold
         on the rows clear of reversals and stops too; what gains only there is the switch of
         friction seen through the velocity filter.
+    probe : bool
+        Some variants lie beyond the physical range of the nonlinear parameter (``physical``
+        refuses them); they are fitted too, and when one of them cross-validates best the effect
+        is refused: the data prefer what the effect is not, and its nearest physical variant would
+        only be a proxy.
     """
 
     name: str
@@ -160,6 +165,7 @@ class Effect:
     physical: Callable[[dict[str, dict[str, float]], Signals], str | None] | None = None
     refine: Callable[[Signals], list[tuple[float, float]]] | None = None
     whole_motion: bool = False
+    probe: bool = False
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
@@ -381,10 +387,15 @@ def _drift_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearMode
 HEATING_MIN_TAU_S = 1.0
 
 
+#: Shorter "memories" tried as probes (refused as heating): when one of them fits best, the
+#: friction follows the current speed, a velocity curve (a drag growing with the speed, say).
+HEATING_PROBE_TAUS_S = (0.1, 0.3)
+
+
 def _heating_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
-    out = []
+    out: list[LinearModel] = []
     hi = max(2.0 * s.duration, 2.0 * HEATING_MIN_TAU_S)
-    for tau in np.geomspace(HEATING_MIN_TAU_S, hi, 7):
+    for tau in (*HEATING_PROBE_TAUS_S, *np.geomspace(HEATING_MIN_TAU_S, hi, 7)):
         t = Term("heating", ("dFc_heating", "dFv_heating"), lambda s, h: _heating(s, h[0]), (float(tau),), ("heating_tau_s",))
         out.append(_add(model, t, "heating"))
     return out
@@ -457,6 +468,14 @@ def stribeck_fall(p: dict[str, dict[str, float]], v_max: float) -> float:
     return float(curve[0] - curve.min())
 
 
+def _heating_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
+    tau = p["heating_tau_s"]["value"] if "heating_tau_s" in p else HEATING_MIN_TAU_S
+    if tau < HEATING_MIN_TAU_S:
+        return (f"a memory of {tau:.2g} s is shorter than a thermal one ({HEATING_MIN_TAU_S:g} s): the friction follows the current "
+                "speed, a velocity curve (e.g. a drag), not heating")
+    return None
+
+
 def _load_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     m2 = p["m_load"]["value"] if "m_load" in p else 0.0
     mass = p["M"]["value"] if "M" in p else np.inf
@@ -482,7 +501,7 @@ CATALOGUE: dict[str, Effect] = {
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
-        Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants),
+        Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok, probe=True),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
                refine=lambda s: [(1.0, resonance_limit(s)), (0.01, 0.7)], whole_motion=True),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),

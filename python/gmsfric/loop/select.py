@@ -513,8 +513,11 @@ def _residual_rows(st: _State, cfg: LoopConfig) -> tuple[dict[str, Finding], Arr
 
 def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, r_est: Array, prog: Progress | None = None) -> tuple[LinearModel | None, float, str | None]:
     """The effect's variant with the smallest cross-validated error on the estimation rows (only
-    physically valid fits), its CV SSE, and why the last invalid one was refused."""
+    physically valid fits), its CV SSE, and why the last invalid one was refused.  For a probing
+    effect (:attr:`Effect.probe`) the invalid variants are cross-validated too, and none is
+    returned when one of them is the best."""
     best: tuple[float, LinearModel] | None = None
+    best_invalid: tuple[float, str] | None = None
     why: str | None = None
     for m in eff.variants(model, st.split.est, r_est):
         try:
@@ -522,6 +525,10 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
                 w = eff.check(_fit(m, st.split), st.split.est)
                 if w is not None:
                     why = w
+                    if eff.probe:
+                        cv_bad = _cv(m, st.split, cfg)
+                        if best_invalid is None or cv_bad < best_invalid[0]:
+                            best_invalid = (cv_bad, w)
                     continue
             cv = _cv(m, st.split, cfg)
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
@@ -530,6 +537,8 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
             best = (cv, m)
         if prog is not None:
             prog.update(note=f"{eff.name}")
+    if best_invalid is not None and (best is None or best_invalid[0] < best[0]):
+        return None, float("nan"), f"{best_invalid[1]}; that fits the estimation rows best"
     if best is not None and eff.refine is not None:
         best = _refine_hyper(eff, best, st, cfg)
     return (best[1], best[0], why) if best is not None else (None, float("nan"), why)
