@@ -760,18 +760,14 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
         h = heldout(split, st.model, both, st.chunk)
         dbic = n_est * np.log(_sse(both, split) / sse_cur) + (both.n_params - st.model.n_params) * np.log(n_est)
         change, implausible = _plausibility(st.base_phys, st.base_std, both, split, cfg)
-        if h.gain < cfg.min_gain or dbic >= 0 or implausible is not None:
+        if h.gain < cfg.min_gain or dbic >= 0 or implausible is not None or (best is not None and h.gain <= best[0]):
             continue
         marginals: dict[str, dict[str, Any]] = {}
         passed = True
         for eff, other in ((ea, eb), (eb, ea)):
-            if eff.name == "input_delay":
-                reduced = _with_delay(both, st.model.delay, dt)
-                reduced.extras = dict(st.model.extras)
-            else:
-                reduced = both.copy()
-                reduced.terms = [t for t in both.terms if t.name != eff.name]
-            reduced.effects = [e for e in both.effects if e != eff.name]
+            reduced = _without(both, eff.name, dt)
+            if eff.name == "input_delay":  # back to the model's own timing alignment
+                reduced.delay, reduced.extras = st.model.delay, dict(st.model.extras)
             _fit(reduced, split)
             hm = heldout(split, reduced, both, st.chunk)
             ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain >= cfg.min_gain
@@ -785,8 +781,6 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
                 passed = False
                 break
         if not passed:
-            continue
-        if best is not None and h.gain <= best[0]:
             continue
         e_est, e_val = split.errors(both)
         steps = []
