@@ -87,6 +87,7 @@ def test_a_plant_too_fast_for_the_step_is_refused_instead_of_squaring_forever(b,
 
 LONG_RUN = """
 import os, signal, sys, threading, time
+signal.signal(signal.SIGINT, signal.default_int_handler)  # a launcher may have started us with SIGINT ignored
 n = 4_000_000
 blocks = g.MaxwellSlip(np.full(4000, 1e6), np.full(4000, 1e-4))  # ~4000 block updates per step: minutes
 ref = 1e-3 * np.sin(np.linspace(0, 50, n))
