@@ -8,7 +8,8 @@ columns (linear parameters) with, for some, a nonlinear parameter fitted by a gr
                                level at rest ``Fs > 0`` to the sliding level (either way)
 ``presliding_hysteresis``      GMS / Maxwell-slip blocks: elasto-plastic elements of break
                                displacement ``Delta_i`` and break force ``w_i`` (rate-independent
-                               hysteresis after each reversal)
+                               hysteresis after each reversal), with a stiffest element at the
+                               position resolution (``w_switch``) that is not evidence on its own
 ``position_dependent_friction``  ``sign(qd) g(q)``: the Coulomb level varies along the travel
 ``position_dependent_force``   ``g(q)``, independent of direction: cogging, springs, cables
 ``input_delay``                the force acts ``tau`` after it is commanded, ``tau`` beyond one
@@ -156,6 +157,11 @@ class Effect:
         refuses them); they are fitted too, and when one of them cross-validates best the effect
         is refused: the data prefer what the effect is not, and its nearest physical variant would
         only be a proxy.
+    null : callable, optional
+        ``null(term) -> Term``: the part of the effect's term that is no evidence for the effect
+        on its own.  The effect's tests (held-out, cross-validated, BIC; forward, in pairs and
+        backward) compare against the model with this part kept rather than with the whole term
+        removed, so the effect must explain what its null does not.
     """
 
     name: str
@@ -166,6 +172,7 @@ class Effect:
     refine: Callable[[Signals], list[tuple[float, float]]] | None = None
     whole_motion: bool = False
     probe: bool = False
+    null: Callable[[Term], Term] | None = None
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
@@ -258,10 +265,20 @@ def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
         # one, two and three blocks: break forces are positive, and a set of blocks that only
         # fits with a negative one is refused, while a subset of them may be the contact
         for n in range(1, len(grid) + 1):
-            t = Term("presliding_hysteresis", tuple(f"w_block{i + 1}" for i in range(n)), lambda s, h: np.column_stack([_play(s, d) for d in h]),
-                     grid[:n], tuple(f"Delta_block{i + 1}" for i in range(n)))
+            t = Term("presliding_hysteresis", ("w_switch",) + tuple(f"w_block{i + 1}" for i in range(n)),
+                     lambda s, h: np.column_stack([_play(s, d) for d in h]),
+                     (float(s.resolution),) + grid[:n], ("Delta_switch",) + tuple(f"Delta_block{i + 1}" for i in range(n)))
             out.append(_add(model, t, "presliding_hysteresis"))
     return out
+
+
+def reversal_switch(term: Term) -> Term:
+    """The pre-sliding term's stiffest element alone: a block of one position resolution step,
+    i.e. friction that switches where the measured position reverses.  Every contact does that
+    (a Karnopp or LuGre contact as much as a Maxwell-slip one), and where the velocity filter
+    blurs reversals it fits better than ``sign(qd)`` of the filtered velocity; that is no
+    evidence of an elastic range, so pre-sliding is tested against the model with this switch."""
+    return Term(term.name, term.param_names[:1], term.build, term.hyper[:1], term.hyper_names[:1])
 
 
 def position_periods(s: Signals, r: Array, odd: bool, n_peaks: int = 2) -> list[float]:
@@ -486,7 +503,7 @@ def _load_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
 
 def _blocks_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     for n, v in p.items():
-        if n.startswith("w_block") and v["value"] < -2 * v["std"]:
+        if n.startswith(("w_block", "w_switch")) and v["value"] < -2 * v["std"]:
             return f"negative block break force {n} = {v['value']:.3g}"
     return None
 
@@ -496,7 +513,8 @@ CATALOGUE: dict[str, Effect] = {
     for e in (
         Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric),
         Effect("stribeck", "friction changes from its level at rest to its sliding level at low speed (Stribeck curve)", "velocity", _stribeck, _stribeck_ok),
-        Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok),
+        Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok,
+               null=reversal_switch),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True),

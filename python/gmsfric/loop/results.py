@@ -41,8 +41,8 @@ _PARAMETER_QUANTITIES = {
     "fn_hz": "frequency",
 }
 _PARAMETER_PATTERNS = (
-    (re.compile(r"w_block\d+$"), "force"),
-    (re.compile(r"Delta_block\d+$"), "position"),
+    (re.compile(r"w_(block\d+|switch)$"), "force"),
+    (re.compile(r"Delta_(block\d+|switch)$"), "position"),
     (re.compile(r"(dFc_q|Fq)_(P\d+|(sin|cos)\d+_.*)$"), "force"),
 )
 

@@ -349,6 +349,16 @@ def _without(m: LinearModel, effect: str, dt: float) -> LinearModel:
     return out
 
 
+def _reduced(m: LinearModel, effect: str, dt: float) -> LinearModel:
+    """What an effect of ``m`` is tested against (unfitted): ``m`` without it, but with the part
+    of its term that is no evidence for it on its own (:attr:`Effect.null`)."""
+    out = _without(m, effect, dt)
+    eff = CATALOGUE.get(effect)
+    if eff is not None and eff.null is not None:
+        out.terms.append(eff.null(next(t for t in m.terms if t.name == effect)))
+    return out
+
+
 def _replace_term(m: LinearModel, term: Term) -> LinearModel:
     out = m.copy()
     out.terms = [term if t.name == term.name else t for t in out.terms]
@@ -617,7 +627,8 @@ def _backward(st: _State, cfg: LoopConfig, rnd: int, newest: str) -> None:
             reduced = _fit(_without(st.model, name, dt), split)
             if st.alignment and name == "input_delay":
                 reduced = _align(reduced, split, cfg, st.alignment, rnd, st.chunk)
-            h = heldout(split, reduced, st.model, st.chunk)
+            null = _fit(_reduced(st.model, name, dt), split) if CATALOGUE[name].null is not None else reduced
+            h = heldout(split, null, st.model, st.chunk)
             if h.p <= cfg.alpha and h.gain >= cfg.min_gain:
                 continue
             for s in st.steps:
@@ -652,7 +663,8 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 prog.update(note=f"round {rnd}: {eff.name}")
                 m, cv, why = _best_variant(eff, st.model, st, cfg, r_est, prog)
                 if m is not None:
-                    cands.append((1.0 - cv / cv_cur, eff, m))
+                    cv_null = cv_cur if eff.null is None else _cv(_reduced(m, eff.name, split.est.dt), split, cfg)
+                    cands.append((1.0 - cv / cv_null, eff, m))
                 elif why is not None:
                     f = fnd.get(eff.evidence)
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
@@ -664,9 +676,11 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
                 _fit(m, split)
                 e_est, e_val = split.errors(m)
-                h = heldout(split, st.model, m, st.chunk)
-                h_far = heldout(split, st.model, m, st.chunk, far) if eff.whole_motion and far.sum() >= 2 * st.chunk else None
-                dbic = n_est * np.log(_sse(m, split) / sse_cur) + (m.n_params - st.model.n_params) * np.log(n_est)
+                null = st.model if eff.null is None else _fit(_reduced(m, eff.name, split.est.dt), split)
+                h = heldout(split, null, m, st.chunk)
+                h_far = heldout(split, null, m, st.chunk, far) if eff.whole_motion and far.sum() >= 2 * st.chunk else None
+                sse_null = sse_cur if eff.null is None else _sse(null, split)
+                dbic = n_est * np.log(_sse(m, split) / sse_null) + (m.n_params - null.n_params) * np.log(n_est)
                 change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
                 ev: dict[str, Any] = {}
                 f = fnd.get(eff.evidence)
@@ -676,6 +690,8 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                           moving_rows_error_pct={"estimation": round(split.errors_moving(m)[0], 4), "validation": round(h.error_after, 4)},
                           t_heldout=round(h.t, 2), p_heldout=float(f"{h.p:.3g}"),
                           level=float(f"{level:.3g}"), delta_bic=round(float(dbic), 1), baseline_parameters=change)
+                if eff.null is not None:
+                    ev["tested_against"] = f"the current model plus {', '.join(eff.null(next(t for t in m.terms if t.name == eff.name)).param_names)} alone"
                 reasons = []
                 if gain_cv <= 0:
                     reasons.append("no cross-validated gain on estimation data")
@@ -765,7 +781,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
         marginals: dict[str, dict[str, Any]] = {}
         passed = True
         for eff, other in ((ea, eb), (eb, ea)):
-            reduced = _without(both, eff.name, dt)
+            reduced = _reduced(both, eff.name, dt)
             if eff.name == "input_delay":  # back to the model's own timing alignment
                 reduced.delay, reduced.extras = st.model.delay, dict(st.model.extras)
             _fit(reduced, split)
