@@ -152,11 +152,11 @@ class Effect:
         The effect acts on the whole motion (a delay, a resonance), so its held-out gain must hold
         on the rows clear of reversals and stops too; what gains only there is the switch of
         friction seen through the velocity filter.
-    probe : bool
-        Some variants lie beyond the physical range of the nonlinear parameter (``physical``
-        refuses them); they are fitted too, and when one of them cross-validates best the effect
-        is refused: the data prefer what the effect is not, and its nearest physical variant would
-        only be a proxy.
+    probe : callable, optional
+        ``probe(params) -> bool``: whether a variant lies beyond the physical range of the
+        nonlinear parameter on purpose (``physical`` refuses it).  Such variants are fitted too,
+        and when one of them cross-validates best the effect is refused: the data prefer what the
+        effect is not, and its nearest physical variant would only be a proxy.
     null : callable, optional
         ``null(term) -> Term``: the part of the effect's term that is no evidence for the effect
         on its own.  The effect's tests (held-out, cross-validated, BIC; forward, in pairs and
@@ -171,7 +171,7 @@ class Effect:
     physical: Callable[[dict[str, dict[str, float]], Signals], str | None] | None = None
     refine: Callable[[Signals], list[tuple[float, float]]] | None = None
     whole_motion: bool = False
-    probe: bool = False
+    probe: Callable[[dict[str, dict[str, float]]], bool] | None = None
     null: Callable[[Term], Term] | None = None
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
@@ -418,15 +418,22 @@ def _heating_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearMo
     return out
 
 
+#: Largest damping ratio of a resonance: above it the response has no peak, and a "load on a
+#: spring" is an added mass behind a low-pass filter, which fits any smooth lag.
+COMPLIANCE_MAX_ZETA = 0.5
+
+#: Overdamped ratios tried as probes (refused as compliance): when one of them fits best, the data
+#: prefer a lag to a resonance.
+COMPLIANCE_PROBE_ZETAS = (0.7, 1.0)
+
+
 def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out: list[LinearModel] = []
     f_hi = resonance_limit(s)
     if not f_hi > 2.0:
         return out
-    # a resonance: damping ratios that leave a peak (above ~0.7 a "load on a spring" is an added
-    # mass and a low-pass filter, which fits any smooth lag)
     for fn in np.geomspace(2.0, f_hi, 18):
-        for zeta in (0.03, 0.1, 0.2, 0.4):
+        for zeta in (0.03, 0.1, 0.2, 0.4, *COMPLIANCE_PROBE_ZETAS):
             t = Term("compliance", ("m_load",), lambda s, h: _compliance(s, h[0], h[1]), (float(fn), zeta), ("fn_hz", "zeta"))
             out.append(_add(model, t, "compliance"))
     return out
@@ -498,6 +505,9 @@ def _load_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     mass = p["M"]["value"] if "M" in p else np.inf
     if not 0 < m2 < mass:
         return f"load mass m_load = {m2:.3g} is not between 0 and the axis mass M = {mass:.3g}"
+    zeta = p["zeta"]["value"] if "zeta" in p else 0.0
+    if zeta > COMPLIANCE_MAX_ZETA:
+        return f"a damping ratio of {zeta:.2g} leaves no resonant peak: a lag, not a resonance"
     return None
 
 
@@ -519,9 +529,11 @@ CATALOGUE: dict[str, Effect] = {
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
-        Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok, probe=True),
+        Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok,
+               probe=lambda p: p["heating_tau_s"]["value"] < HEATING_MIN_TAU_S),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
-               refine=lambda s: [(1.0, resonance_limit(s)), (0.01, 0.7)], whole_motion=True),
+               refine=lambda s: [(1.0, resonance_limit(s)), (0.01, COMPLIANCE_MAX_ZETA)], whole_motion=True,
+               probe=lambda p: p["zeta"]["value"] > COMPLIANCE_MAX_ZETA),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }

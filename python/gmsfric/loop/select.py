@@ -523,9 +523,9 @@ def _residual_rows(st: _State, cfg: LoopConfig) -> tuple[dict[str, Finding], Arr
 
 def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, r_est: Array, prog: Progress | None = None) -> tuple[LinearModel | None, float, str | None]:
     """The effect's variant with the smallest cross-validated error on the estimation rows (only
-    physically valid fits), its CV SSE, and why the last invalid one was refused.  For a probing
-    effect (:attr:`Effect.probe`) the invalid variants are cross-validated too, and none is
-    returned when one of them is the best."""
+    physically valid fits), its CV SSE, and why the last invalid one was refused.  An effect's
+    probe variants (:attr:`Effect.probe`) are cross-validated too, and none is returned when one
+    of them is the best."""
     best: tuple[float, LinearModel] | None = None
     best_invalid: tuple[float, str] | None = None
     why: str | None = None
@@ -535,7 +535,7 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
                 w = eff.check(_fit(m, st.split), st.split.est)
                 if w is not None:
                     why = w
-                    if eff.probe:
+                    if eff.probe is not None and eff.probe(m.params()):
                         cv_bad = _cv(m, st.split, cfg)
                         if best_invalid is None or cv_bad < best_invalid[0]:
                             best_invalid = (cv_bad, w)
