@@ -153,7 +153,7 @@ class Effect:
         on the rows clear of reversals and stops too; what gains only there is the switch of
         friction seen through the velocity filter.
     probe : callable, optional
-        ``probe(params) -> bool``: whether a variant lies beyond the physical range of the
+        ``probe(params, est_signals) -> bool``: whether a variant lies beyond the physical range of the
         nonlinear parameter on purpose (``physical`` refuses it).  Such variants are fitted too,
         and when one of them cross-validates best the effect is refused: the data prefer what the
         effect is not, and its nearest physical variant would only be a proxy.
@@ -171,7 +171,7 @@ class Effect:
     physical: Callable[[dict[str, dict[str, float]], Signals], str | None] | None = None
     refine: Callable[[Signals], list[tuple[float, float]]] | None = None
     whole_motion: bool = False
-    probe: Callable[[dict[str, dict[str, float]]], bool] | None = None
+    probe: Callable[[dict[str, dict[str, float]], Signals], bool] | None = None
     null: Callable[[Term], Term] | None = None
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
@@ -237,11 +237,20 @@ def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     lo, hi = velocity_resolution(s), 0.5 * s.v_scale
     if not hi > lo:
         return out
-    for delta in (1.0, 2.0):
-        for vs in np.geomspace(lo, hi, max(2, min(14, int(np.ceil(6 * np.log10(hi / lo))) + 1))):
-            t = Term("stribeck", ("Fs_minus_Fc",), lambda s, h: np.sign(s.qd) * curves.stribeck_shape(s.qd, h[0], h[1]), (float(vs), delta), ("vs", "stribeck_delta"))
-            out.append(_add(model, t, "stribeck"))
+    grid = [(float(vs), delta) for delta in (1.0, 2.0) for vs in np.geomspace(lo, hi, max(2, min(14, int(np.ceil(6 * np.log10(hi / lo))) + 1)))]
+    # probes: curves whose transition lies beyond the fastest motion; across the run's speeds
+    # (Fs - Fc) exp(-(v/vs)^2) is a level and a term in v|v|, i.e. a drag
+    grid += [(f * s.v_scale, 2.0) for f in STRIBECK_PROBE_WIDTHS]
+    for vs, delta in grid:
+        t = Term("stribeck", ("Fs_minus_Fc",), lambda s, h: np.sign(s.qd) * curves.stribeck_shape(s.qd, h[0], h[1]), (vs, delta), ("vs", "stribeck_delta"))
+        out.append(_add(model, t, "stribeck"))
     return out
+
+
+#: Widths (times the run's top speed) of the probe curves that are a drag across the motion.
+STRIBECK_PROBE_WIDTHS = (2.0, 4.0)
+
+
 
 
 #: Largest pre-sliding break displacement, as a fraction of the travel: pre-sliding is the elastic
@@ -457,6 +466,9 @@ def _stribeck_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     # and a dip must be wider than the blur of the filtered velocity through a reversal.
     fc = p.get("Fc", {"value": 0.0})["value"]
     ds = p["Fs_minus_Fc"]["value"] if "Fs_minus_Fc" in p else 0.0
+    if "vs" in p and p["vs"]["value"] > s.v_scale:
+        return (f"the transition speed vs = {p['vs']['value']:.3g} lies beyond the run's speeds ({s.v_scale:.3g}): across the motion "
+                "that curve is a force growing with the square of the speed (drag), not friction falling from rest")
     if fc + ds <= 0:
         return f"friction level at rest Fs = Fc + (Fs - Fc) = {fc + ds:.3g} is not positive"
     if ds > 0 and "Fc" in p and fc <= 0:
@@ -522,7 +534,8 @@ CATALOGUE: dict[str, Effect] = {
     e.name: e
     for e in (
         Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric),
-        Effect("stribeck", "friction changes from its level at rest to its sliding level at low speed (Stribeck curve)", "velocity", _stribeck, _stribeck_ok),
+        Effect("stribeck", "friction changes from its level at rest to its sliding level at low speed (Stribeck curve)", "velocity", _stribeck, _stribeck_ok,
+               probe=lambda p, s: p["vs"]["value"] > s.v_scale),
         Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok,
                null=reversal_switch),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
@@ -530,10 +543,10 @@ CATALOGUE: dict[str, Effect] = {
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok,
-               probe=lambda p: p["heating_tau_s"]["value"] < HEATING_MIN_TAU_S),
+               probe=lambda p, s: p["heating_tau_s"]["value"] < HEATING_MIN_TAU_S),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
                refine=lambda s: [(1.0, resonance_limit(s)), (0.01, COMPLIANCE_MAX_ZETA)], whole_motion=True,
-               probe=lambda p: p["zeta"]["value"] > COMPLIANCE_MAX_ZETA),
+               probe=lambda p, s: p["zeta"]["value"] > COMPLIANCE_MAX_ZETA),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }

@@ -535,7 +535,7 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
                 w = eff.check(_fit(m, st.split), st.split.est)
                 if w is not None:
                     why = w
-                    if eff.probe is not None and eff.probe(m.params()):
+                    if eff.probe is not None and eff.probe(m.params(), st.split.est):
                         cv_bad = _cv(m, st.split, cfg)
                         if best_invalid is None or cv_bad < best_invalid[0]:
                             best_invalid = (cv_bad, w)
