@@ -251,8 +251,6 @@ def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
 STRIBECK_PROBE_WIDTHS = (2.0, 4.0)
 
 
-
-
 #: Largest pre-sliding break displacement, as a fraction of the travel: pre-sliding is the elastic
 #: range of a contact (micrometres on machine axes); a "break displacement" of a sizeable part of
 #: the travel would be a force of the position since the last reversal, not friction.
