@@ -131,3 +131,21 @@ def test_uniform_log_is_left_alone(tmp_path):
     d = load_axis_data(p, time="t", position="q", force="F")
     assert not d.timing["irregular"] and not d.timing["resampled"]
     np.testing.assert_array_equal(d.position, q)
+
+
+@pytest.mark.parametrize("fs", [200.0, 1000.0, 5000.0])
+def test_decimated_rows_keep_positions_and_times_as_values(fs):
+    # Rows are what the residual is analysed on (profiles along the travel, periods in time): a
+    # decimated position or time stamp must equal the full-rate one at the same instant, not come
+    # out scaled by the anti-alias filter's gain (1.15 % short would shift a 50-period cogging
+    # profile by half a period across the travel).
+    from gmsfric.loop import AxisData, Signals
+
+    t = np.arange(0.0, 20.0, 1.0 / fs)
+    q = 0.2 * np.sin(2 * np.pi * 0.1 * t) + 0.01 * t
+    s = Signals(AxisData(t, q, np.cos(t), source="ramp"))
+    assert s.dec > 1
+    at = slice(s.edge, t.size - s.edge, s.dec)
+    inner = slice(20, -20)  # away from the filter's start-up at both ends
+    np.testing.assert_allclose(s.rows["t"][inner], (t - t[0])[at][: s.n_rows][inner], rtol=0, atol=1e-4)
+    np.testing.assert_allclose(s.rows["q"][inner], s.q[at][: s.n_rows][inner], rtol=0, atol=1e-4 * np.ptp(q))
