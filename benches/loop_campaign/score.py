@@ -31,6 +31,12 @@ def native(r: dict[str, Any]) -> list[str]:
     return out
 
 
+def _latent_spring(r: dict[str, Any]) -> bool:
+    """Whether a backlash rig's spring (the load behind the gap) alone meets the detectability
+    rule (``truth.info.latent_compliance``): information only, the rig's effect lies outside."""
+    return r.get("truth", {}).get("info", {}).get("latent_compliance", 0.0) >= DETECTABLE
+
+
 def false_effects(r: dict[str, Any]) -> list[str]:
     ok = set(r["planted"]) | set(native(r))
     return [e for e in r["accepted"] if e not in ok]
@@ -163,6 +169,9 @@ def format_report(results: list[dict[str, Any]], summary: dict[str, Any], wall_s
     out += [f"  {cid}: {', '.join(effs)}" for cid, effs in fe]
     out.append("  by group: " + ", ".join(f"{g} {_pct(k, n)}" for g, (k, n) in sorted(s["false_by_group"].items())))
     out.append("  by effect: " + ", ".join(f"{e} {n}" for e, n in sorted(s["false_counts"].items(), key=lambda x: -x[1])))
+    spring = [cid for cid, effs in fe if effs == ["compliance"] and _latent_spring(next(r for r in results if r["id"] == cid))]
+    if spring:
+        out.append(f"  of which a backlash rig's own spring named compliance (its column detectable; counted false all the same): {len(spring)}")
     out.append("")
     c, pd, pa = s["clean"], s["pairs_both_detectable"], s["pairs_all"]
     out.append(f"Clean runs ending with nothing added: {_pct(c[0], c[1])} of completed ({c[2]} failed)")
