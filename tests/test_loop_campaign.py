@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
 import pytest
 
 from conftest import REPO
@@ -131,3 +132,23 @@ def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     eff = CATALOGUE["compliance"]
     monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, probe=None))
     assert run_loop(*runs, cfg).effects == ["asymmetric_friction", "compliance"]
+
+
+def test_a_delay_must_gain_where_the_filter_has_settled_after_reversals(monkeypatch):
+    """A clean-timing Karnopp rig driven by a fast sweep sticks at every reversal; around those
+    sticks sign(qd) of the zero-phase filtered velocity switches at the wrong instant and a force
+    shifted by 1.4 samples makes up for it (held-out t 4.3, also on rows faster than the filter's
+    blur).  On the held-out rows settled after every reversal and stop the shift gains nothing,
+    so no input delay is named (a case of the campaign's seed 23); judged on the fast rows alone,
+    it is."""
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop import select
+
+    runs = _campaign_runs(23, "single-012-asymmetric_friction")
+    cfg = LoopConfig(progress=False, effects=("input_delay",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == []
+    refused = [s for s in res.steps if s.effect == "input_delay"]
+    assert refused and "not confirmed away from reversals" in refused[0].reason
+    monkeypatch.setattr(select, "settled_rows", lambda s: np.ones(s.n_rows, bool))
+    assert run_loop(*runs, cfg).effects == ["input_delay"]

@@ -161,3 +161,20 @@ def test_heating_is_refused_when_a_memory_shorter_than_a_thermal_one_fits_best()
 
     res = run_loop(simulate_rig(Rig(effect="heating", seed=1, fs=1000.0, duration=24.0)), None, LoopConfig(progress=False, effects=("heating",)))
     assert res.effects == ["heating"] and res.final.params()["heating_tau_s"]["value"] >= 1.0
+
+
+def test_settled_rows_keep_clear_of_reversals_and_stops_by_the_filters_settling_time():
+    from gmsfric.loop.effects import REVERSAL_SETTLING_PERIODS, settled_rows
+
+    fs = 1000.0
+    t = np.arange(0.0, 12.0, 1.0 / fs)
+    q = 0.05 * np.sin(2 * np.pi * 0.25 * t)
+    s = Signals(AxisData(t, q, np.cos(t), source="sine"))
+    keep = settled_rows(s)
+    tr = s.rows["t"]
+    reversals = (np.arange(1, 7) - 0.5) * 2.0  # qd = 0 at t = 1, 3, 5, ... s
+    dist = np.min(np.abs(tr[:, None] - reversals[None, :]), axis=1)
+    margin = REVERSAL_SETTLING_PERIODS / s.cutoff
+    assert not keep[dist < margin].any()
+    # rows well clear of the reversals and of the slow rows around them are all kept
+    assert keep[(dist > margin + 0.1) & s.moving].all()

@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 from numpy.polynomial import legendre
-from scipy import signal
+from scipy import ndimage, signal
 
 from .. import curves
 from .. import models as _models
@@ -222,6 +222,26 @@ def dip_resolution(s: Signals) -> float:
     least half its depth beyond this speed.  A hump (``Fs > Fc``) is the opposite of that blur, so
     it may be as narrow as :func:`velocity_resolution`."""
     return max(3.0 * s.rest_speed, _rms_acceleration(s) / s.cutoff)
+
+
+#: Time, in periods of the velocity filter's cut-off, that its response to a reversal or a stop
+#: takes to settle (on either side: the filter is zero-phase).
+REVERSAL_SETTLING_PERIODS = 2.0
+
+
+def settled_rows(s: Signals) -> Array:
+    """Rows farther in time than ``REVERSAL_SETTLING_PERIODS / cutoff`` from a reversal (a change
+    of sign of the filtered velocity) or a standstill row.
+
+    Where the axis sticks, the force crosses the stiction band while the position holds, and the
+    zero-phase filter spreads that over the rows before and after it: there ``sign(qd)`` switches
+    at the wrong instant, and shifting the force in time or a slow resonance can make up for it.
+    A speed threshold alone does not remove those rows after a fast breakaway."""
+    qd = s.rows["qd"]
+    event = ~s.moving
+    event[1:] |= np.sign(qd[1:]) != np.sign(qd[:-1])
+    half = int(np.ceil(REVERSAL_SETTLING_PERIODS / s.cutoff / (s.dt * s.dec)))
+    return ~ndimage.maximum_filter1d(event.astype(np.uint8), 2 * half + 1).astype(bool)
 
 
 def direction_resolution(s: Signals) -> float:

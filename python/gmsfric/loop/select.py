@@ -59,7 +59,7 @@ from .._progress import Progress
 from .._validate import count, finite
 from ..errors import IdentificationError, InvalidInputError
 from .data import AxisData
-from .effects import CATALOGUE, Effect, dip_resolution
+from .effects import CATALOGUE, Effect, dip_resolution, settled_rows
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
 from .residuals import Finding, analyse
 from .results import LoopResult, Step
@@ -670,8 +670,9 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
                     st.steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
             level = cfg.level(rnd, len(applicable))
-            # held-out rows clear of reversals and stops (faster than the blur of the filter)
-            far = split.val_test & (np.abs(split.val.rows["qd"]) >= dip_resolution(split.est))
+            # held-out rows clear of reversals and stops (faster than the blur of the filter, and
+            # settled after it in time)
+            far = split.val_test & (np.abs(split.val.rows["qd"]) >= dip_resolution(split.est)) & settled_rows(split.val)
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
                 _fit(m, split)
