@@ -36,6 +36,7 @@ from typing import Callable
 
 import numpy as np
 from numpy.polynomial import legendre
+from numpy.typing import NDArray
 from scipy import ndimage, signal
 
 from .. import curves
@@ -229,7 +230,7 @@ def dip_resolution(s: Signals) -> float:
 REVERSAL_SETTLING_PERIODS = 2.0
 
 
-def settled_rows(s: Signals) -> Array:
+def settled_rows(s: Signals) -> NDArray[np.bool_]:
     """Rows farther in time than ``REVERSAL_SETTLING_PERIODS / cutoff`` from a reversal (a change
     of sign of the filtered velocity) or a standstill row.
 

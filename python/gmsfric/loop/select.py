@@ -672,7 +672,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             level = cfg.level(rnd, len(applicable))
             # held-out rows clear of reversals and stops (faster than the blur of the filter, and
             # settled after it in time)
-            far = split.val_test & (np.abs(split.val.rows["qd"]) >= dip_resolution(split.est)) & settled_rows(split.val)
+            far = settled_rows(split.val) & (np.abs(split.val.rows["qd"]) >= dip_resolution(split.est)) & split.val_test.astype(bool)
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
                 _fit(m, split)
