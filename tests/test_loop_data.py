@@ -149,3 +149,20 @@ def test_decimated_rows_keep_positions_and_times_as_values(fs):
     inner = slice(20, -20)  # away from the filter's start-up at both ends
     np.testing.assert_allclose(s.rows["t"][inner], (t - t[0])[at][: s.n_rows][inner], rtol=0, atol=1e-4)
     np.testing.assert_allclose(s.rows["q"][inner], s.q[at][: s.n_rows][inner], rtol=0, atol=1e-4 * np.ptp(q))
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(cutoff_hz=float("nan")), "cutoff_hz"),
+    (dict(cutoff_hz=-1.0), "cutoff_hz"),
+    (dict(cutoff_hz=1e-9), "fewer than 10 of its periods"),  # its windows would not fit in memory
+    (dict(order=0), "order"),
+    (dict(decimation=2.5), "decimation"),
+    (dict(edge_s=float("inf")), "edge_s"),
+])
+def test_bad_preprocessing_is_refused_by_name_before_any_work(kwargs, message):
+    from gmsfric.errors import InvalidInputError
+    from gmsfric.loop import AxisData, Preprocessing, Signals
+
+    t = np.arange(0.0, 10.0, 1e-3)
+    with pytest.raises(InvalidInputError, match=message):
+        Signals(AxisData(t, 0.05 * np.sin(t), np.cos(t), source="run"), Preprocessing(**kwargs))

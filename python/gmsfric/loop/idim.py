@@ -22,7 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage, signal
 
-from ..errors import IdentificationError
+from .._validate import count, finite
+from ..errors import IdentificationError, InvalidInputError
 from .data import AxisData
 
 Array = NDArray[np.float64]
@@ -48,6 +49,15 @@ class Preprocessing:
     order: int = 4
     decimation: int | None = None
     edge_s: float = 0.049
+
+    def __post_init__(self) -> None:
+        if self.cutoff_hz is not None and not finite("cutoff_hz", self.cutoff_hz) > 0:
+            raise InvalidInputError(f"`cutoff_hz` must be positive, got {self.cutoff_hz}")
+        count("order", self.order, minimum=1, maximum=12)
+        if self.decimation is not None:
+            count("decimation", self.decimation, minimum=1)
+        if not finite("edge_s", self.edge_s) >= 0:
+            raise InvalidInputError(f"`edge_s` must be >= 0, got {self.edge_s}")
 
     def resolve(self, fs: float) -> tuple[float, int, int]:
         fc = self.cutoff_hz if self.cutoff_hz is not None else min(100.0, fs / 10.0)
@@ -110,6 +120,10 @@ class Signals:
         self.dt = data.dt
         self.fs = 1.0 / self.dt
         self.cutoff, self.dec, self.edge = pre.resolve(self.fs)
+        duration = float(data.t[-1] - data.t[0])
+        if self.cutoff * duration < 10.0:
+            # the filter's and the stuck test's windows span a period of the cut-off
+            raise InvalidInputError(f"`cutoff_hz` = {self.cutoff:.3g} Hz leaves fewer than 10 of its periods in {data.source} ({duration:.3g} s)")
         n = len(data)
         if n - 2 * self.edge < 20 * self.dec:
             raise IdentificationError(f"{data.source}: {n} samples leave too few rows after dropping {self.edge} edge samples and decimating by {self.dec}")
