@@ -13,7 +13,12 @@ A second, informative figure leaves standstill rows out (``gain_moving``,
 ``detectable_moving``): at rest a stuck axis carries any holding force up to the break-away level,
 which ``sign(qd)`` (of a filtered, ringing velocity) cannot represent and which can hide or fake an
 effect.  Every run also carries the sampling hold (half a controller period), which the true model
-includes as physics of the rig, never as an effect.  Logs with irregular time stamps are
+includes as physics of the rig, never as an effect.  A third figure (``gain_beyond_null``,
+``detectable_beyond_null``, moving rows) measures an effect against what the loop tests it
+against: pre-sliding on top of the switch of friction where the measured position reverses (a
+block one position resolution wide: every contact does that, and it is a sharper Coulomb term than
+``sign`` of the filtered velocity), an input delay against the best timing shift within one
+sample (the loop's alignment); for the other effects it equals ``gain_moving``.  Logs with irregular time stamps are
 linearly resampled onto a uniform grid at their median step.
 """
 
@@ -90,9 +95,17 @@ def effect_columns(e: dict[str, Any], sig: Signals) -> list[Array]:
         return []
     if name == "drag":
         return [qd * np.abs(qd)]
+    if name == "reversal_switch":
+        return [switch_column(sig)]
     if name in ("ripple", "square", "backlash"):
         return []  # no fixed column: the phase changes between runs, or no closed form
     raise ValueError(f"no true column for {name!r}")
+
+
+def switch_column(sig: Signals) -> Array:
+    """Friction of unit level switching where the measured (raw) position reverses: a Maxwell-slip
+    block one position resolution wide, the loop's null for pre-sliding."""
+    return g.simulate_friction(g.MaxwellSlip([1.0 / sig.resolution], [1.0]), sig.t, np.asarray(sig.data.position, dtype=float))
 
 
 def contact_model(e: dict[str, Any]) -> Any:
@@ -161,6 +174,18 @@ def ground_truth(case: dict[str, Any], est: Run, val: Run) -> dict[str, Any]:
         "baseline_err": base, "true_model_err": full, "baseline_err_moving": base_m, "true_model_err_moving": full_m,
         "effects": {}, "fs": se.fs, "rows": se.n_rows, "jitter_ratio": uniform(est)[3],
     }
+    def beyond_null(e: dict[str, Any], rest: list[dict[str, Any]], full_val: float) -> float:
+        """Marginal held-out gain (moving rows) of ``e`` against the loop's null for it."""
+        if e["name"] == "presliding_hysteresis":
+            null = err(rest + [{"name": "reversal_switch"}], True)[1]
+            return (null - err(planted + [{"name": "reversal_switch"}], True)[1]) / null
+        if e["name"] == "input_delay":
+            d = next((x["tau"] for x in rest if x["name"] == "input_delay"), 0.0)
+            fits = [errors(se, sv, native + rest, k / (10 * se.fs) + d, off, True) for k in range(11)]
+            null = min(fits)[1]  # the shift the estimation rows choose
+            return (null - full_val) / null
+        return float("nan")
+
     for e in planted:
         rest = [x for x in planted if x is not e]
         without = err(rest) if rest else base
@@ -168,6 +193,8 @@ def ground_truth(case: dict[str, Any], est: Run, val: Run) -> dict[str, Any]:
         alone = err([e])
         marginal = (without[1] - full[1]) / without[1]
         marginal_m = (without_m[1] - full_m[1]) / without_m[1]
+        over_null = beyond_null(e, rest, full_m[1])
+        over_null = marginal_m if not np.isfinite(over_null) else over_null
         out["effects"][e["name"]] = {
             "gain": round(float(marginal), 4),
             "gain_alone": round(float((base[1] - alone[1]) / base[1]), 4),
@@ -175,6 +202,8 @@ def ground_truth(case: dict[str, Any], est: Run, val: Run) -> dict[str, Any]:
             "est_err_alone": [round(base[0], 3), round(alone[0], 3)],
             "detectable": bool(marginal >= DETECTABLE),
             "detectable_moving": bool(marginal_m >= DETECTABLE),
+            "gain_beyond_null": round(float(over_null), 4),
+            "detectable_beyond_null": bool(over_null >= DETECTABLE),
         }
     info: dict[str, float] = {}
     for e in case.get("outside", []):
