@@ -114,6 +114,29 @@ def test_presliding_must_explain_more_than_a_switch_at_the_reversal(monkeypatch)
     assert run_loop(*clean, only).effects == ["presliding_hysteresis"]
 
 
+def test_presliding_narrower_than_the_filter_blur_is_found(monkeypatch):
+    """A GMS contact whose elastic range (0.4-4 um) lies within the distance a reversal travels in
+    the velocity filter's blur, but spans many encoder steps (50 nm): its blocks follow the raw
+    position, so the loop finds it against the switch (campaign seed 27); with the grid starting
+    at that blur, as it once did, the pre-sliding is missed."""
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop import effects
+
+    only = LoopConfig(progress=False, effects=("presliding_hysteresis",))
+    runs = _campaign_runs(27, "single-055-presliding_hysteresis")
+    res = run_loop(*runs, only)
+    assert res.effects == ["presliding_hysteresis"]
+    step = next(s for s in res.steps if s.accepted)
+    assert "w_switch" in step.evidence["tested_against"] and step.evidence["t_heldout"] >= 3.0
+    deltas = [v["value"] for k, v in step.parameters.items() if k.startswith("Delta_block")]
+    assert min(deltas) < 4e-6  # within the blur, where the contact's blocks are
+
+    blur_start = lambda s: (max(2 * s.resolution, 0.5 * float(np.sqrt(np.mean(s.rows["qdd"] ** 2))) * (0.5 / s.cutoff) ** 2),  # noqa: E731
+                            effects.PRESLIDING_MAX_FRACTION * float(np.ptp(s.q)))
+    monkeypatch.setattr(effects, "presliding_range", blur_start)
+    assert run_loop(*runs, only).effects == []
+
+
 def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     """A rig with no resonance whose residual a heavily damped "load on a spring" fits (a lag,
     no peak): when an overdamped probe cross-validates best, compliance is refused (a case of the

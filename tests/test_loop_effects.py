@@ -9,7 +9,7 @@ import pytest
 
 from gmsfric.loop.data import AxisData
 from gmsfric.loop import LoopConfig, run_loop
-from gmsfric.loop.effects import CATALOGUE, _compliance_variants, _play, _presliding, _stribeck_ok, dip_resolution, direction_resolution, stribeck_fall, velocity_resolution
+from gmsfric.loop.effects import CATALOGUE, _compliance_variants, _play, _presliding, _stribeck_ok, dip_resolution, stribeck_fall, velocity_resolution
 from gmsfric.loop.rigs import Rig, simulate_rig
 from gmsfric.loop.idim import LinearModel, Signals
 
@@ -43,19 +43,16 @@ def test_presliding_element_holds_while_the_axis_sticks():
         assert col[-1] == pytest.approx(-col[int(1.5 * FS)]) and abs(col[-1]) == pytest.approx(1.0)
 
 
-def test_presliding_grid_starts_beyond_the_filter_blur():
+def test_presliding_grid_starts_at_two_resolution_steps():
     s, _ = _stick_at_reversal()
-    blur = direction_resolution(s)
-    a_rms = float(np.sqrt(np.mean(s.rows["qdd"] ** 2)))
-    # distance travelled from a reversal within half a period of the velocity filter
-    assert blur == pytest.approx(0.5 * a_rms * (0.5 / s.cutoff) ** 2)
     variants = _presliding(LinearModel([]), s, np.zeros(s.n_rows))
     assert variants
     terms = [t for m in variants for t in m.terms if t.name == "presliding_hysteresis"]
-    # every block's range is beyond the blur; only the switch (tested as the null) is finer
+    # every variant carries the switch (one resolution step, tested as the null) ...
     assert all(t.hyper_names[0] == "Delta_switch" and t.hyper[0] == s.resolution for t in terms)
-    smallest = min(min(t.hyper[1:]) for t in terms)
-    assert smallest >= max(2 * s.resolution, blur) * (1 - 1e-12)
+    # ... and blocks from two resolution steps of the raw position that drives them
+    assert min(min(t.hyper[1:]) for t in terms) == pytest.approx(2 * s.resolution)
+    assert max(max(t.hyper[1:]) for t in terms) <= 0.01 * np.ptp(s.q) * (1 + 1e-12)
 
 
 def _params(fc: float, ds: float, vs: float) -> dict[str, dict[str, float]]:

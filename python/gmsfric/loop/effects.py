@@ -245,14 +245,6 @@ def settled_rows(s: Signals) -> NDArray[np.bool_]:
     return ~ndimage.maximum_filter1d(event.astype(np.uint8), 2 * half + 1).astype(bool)
 
 
-def direction_resolution(s: Signals) -> float:
-    """Distance the axis travels from a reversal (at its rms acceleration) within half a period of
-    the velocity filter, the window the stuck test uses: the zero-phase filter blends the motion
-    on either side of a reversal or a stop over about that window, so neither sign(qd) nor a
-    pre-sliding element can place a change of the force within it."""
-    return 0.5 * _rms_acceleration(s) * (0.5 / s.cutoff) ** 2
-
-
 def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out: list[LinearModel] = []
     lo, hi = velocity_resolution(s), 0.5 * s.v_scale
@@ -278,14 +270,17 @@ STRIBECK_PROBE_WIDTHS = (2.0, 4.0)
 PRESLIDING_MAX_FRACTION = 0.01
 
 
+def presliding_range(s: Signals) -> tuple[float, float]:
+    """Break displacements tried for pre-sliding blocks: from two resolution steps of the measured
+    position that drives them to the elastic range's upper bound.  Not bounded by the velocity
+    filter's blur: the blocks follow the raw position, and what a narrow block shares with a
+    switch of friction at the reversal is taken out by testing against that switch."""
+    return 2.0 * s.resolution, PRESLIDING_MAX_FRACTION * float(np.ptp(s.q))
+
+
 def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out: list[LinearModel] = []
-    span = float(np.ptp(s.q))
-    # from what the data resolve to the elastic range's upper bound: every block's range spans
-    # two resolution steps and the distance the axis travels through a reversal within the
-    # velocity filter's time constant (a narrower block only switches with the direction of
-    # motion: a sharper Coulomb term than sign(qd) of the filtered velocity, not pre-sliding)
-    lo, hi = max(2.0 * s.resolution, direction_resolution(s)), PRESLIDING_MAX_FRACTION * span
+    lo, hi = presliding_range(s)
     if not hi > lo:
         return out
     for dmax in np.geomspace(lo, hi, max(2, min(12, int(np.ceil(4 * np.log10(hi / lo))) + 1))):
