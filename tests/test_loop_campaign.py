@@ -182,3 +182,23 @@ def test_a_delay_must_gain_where_the_filter_has_settled_after_reversals(monkeypa
     assert refused and "not confirmed away from reversals" in refused[0].reason
     monkeypatch.setattr(select, "settled_rows", lambda s: np.ones(s.n_rows, bool))
     assert run_loop(*runs, cfg).effects == ["input_delay"]
+
+
+def test_a_delay_must_gain_beyond_the_decimation_filters_ringing(monkeypatch):
+    """A clean-timing Karnopp rig under a stiff P-PI cascade, logged at 2 kHz (campaign seed 29):
+    the force steps of its sticks ring through the decimation filter for about 7 rows on either
+    side, beyond the velocity filter's settling time, and a force shifted by 5 samples fitted that
+    (held-out t 4.4, also on the rows the velocity filter had settled on).  Rows clear of that
+    ringing confirm nothing, so no input delay is named; with the velocity filter's margin alone,
+    it is."""
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop import effects
+
+    runs = _campaign_runs(29, "single-003-asymmetric_friction")
+    cfg = LoopConfig(progress=False, effects=("input_delay",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == []
+    refused = [s for s in res.steps if s.effect == "input_delay"]
+    assert refused and "not confirmed away from reversals" in refused[0].reason
+    monkeypatch.setattr(effects, "decimation_settling_rows", lambda dec: 0)
+    assert run_loop(*runs, cfg).effects == ["input_delay"]

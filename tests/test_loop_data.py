@@ -151,6 +151,26 @@ def test_decimated_rows_keep_positions_and_times_as_values(fs):
     np.testing.assert_allclose(s.rows["q"][inner], s.q[at][: s.n_rows][inner], rtol=0, atol=1e-4 * np.ptp(q))
 
 
+@pytest.mark.parametrize("fs", [1000.0, 5000.0])
+def test_a_force_step_rings_over_the_decimation_settling_rows(fs):
+    # A force step the regressors do not share (stiction crossed while the axis holds) leaks into
+    # the rows around it through the anti-alias filter; rows farther than the settling count are
+    # within 1 % of the step, and the ringing does reach that far (the count is not padding).
+    from gmsfric.loop import AxisData, Signals
+    from gmsfric.loop.idim import DECIMATION_SETTLING_TOL, decimation_settling_rows
+
+    t = np.arange(0.0, 4.0, 1.0 / fs)
+    t_step = 2.0
+    s = Signals(AxisData(t, 0.01 * np.sin(t), (t >= t_step).astype(float), source="step"))
+    n = decimation_settling_rows(s.dec)
+    assert s.dec > 1 and 5 <= n <= 10  # tens of milliseconds at 100 Hz rows
+    k = np.arange(s.n_rows)
+    i_step = int(np.argmin(np.abs(s.rows["t"] - t_step)))
+    off = np.abs(s.y - (k >= i_step))
+    assert off[np.abs(k - i_step) > n + 1].max() <= DECIMATION_SETTLING_TOL
+    assert off[np.abs(k - i_step) >= n - 1].max() > 0.5 * DECIMATION_SETTLING_TOL
+
+
 @pytest.mark.parametrize("kwargs, message", [
     (dict(cutoff_hz=float("nan")), "cutoff_hz"),
     (dict(cutoff_hz=-1.0), "cutoff_hz"),

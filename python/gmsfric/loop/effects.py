@@ -41,7 +41,7 @@ from scipy import ndimage, signal
 
 from .. import curves
 from .. import models as _models
-from .idim import Array, LinearModel, Signals, Term
+from .idim import Array, LinearModel, Signals, Term, decimation_settling_rows
 
 # ------------------------------------------------------------------------------------------
 # column builders (full rate)
@@ -231,17 +231,19 @@ REVERSAL_SETTLING_PERIODS = 2.0
 
 
 def settled_rows(s: Signals) -> NDArray[np.bool_]:
-    """Rows farther in time than ``REVERSAL_SETTLING_PERIODS / cutoff`` from a reversal (a change
-    of sign of the filtered velocity) or a standstill row.
+    """Rows farther from a reversal (a change of sign of the filtered velocity) or a standstill
+    row than both filters take to settle: ``REVERSAL_SETTLING_PERIODS / cutoff`` in time for the
+    velocity filter, and :func:`~gmsfric.loop.idim.decimation_settling_rows` rows for the
+    decimation filter.
 
     Where the axis sticks, the force crosses the stiction band while the position holds, and the
-    zero-phase filter spreads that over the rows before and after it: there ``sign(qd)`` switches
+    zero-phase filters spread that over the rows before and after it: there ``sign(qd)`` switches
     at the wrong instant, and shifting the force in time or a slow resonance can make up for it.
     A speed threshold alone does not remove those rows after a fast breakaway."""
     qd = s.rows["qd"]
     event = ~s.moving
     event[1:] |= np.sign(qd[1:]) != np.sign(qd[:-1])
-    half = int(np.ceil(REVERSAL_SETTLING_PERIODS / s.cutoff / (s.dt * s.dec)))
+    half = max(int(np.ceil(REVERSAL_SETTLING_PERIODS / s.cutoff / (s.dt * s.dec))), decimation_settling_rows(s.dec))
     return ~ndimage.maximum_filter1d(event.astype(np.uint8), 2 * half + 1).astype(bool)
 
 

@@ -96,6 +96,29 @@ def decimation_gain(dec: int) -> float:
     return float(np.mean(signal.decimate(np.ones(64), dec, zero_phase=True)))
 
 
+#: Fraction of a step that the decimation filter may still leave beside it at a settled row.
+DECIMATION_SETTLING_TOL = 0.01
+
+
+@functools.lru_cache(maxsize=None)
+def decimation_settling_rows(dec: int) -> int:
+    """Rows on either side of a step over which :func:`scipy.signal.decimate` (zero-phase, the
+    recipe's order-8 Chebyshev) leaves more than ``DECIMATION_SETTLING_TOL`` of the step: about 7
+    for every factor above 1 (70 ms at the recipe's 100 Hz rows), 0 without decimation.
+
+    A force step the regressors do not share (the force crossing the stiction band while the axis
+    holds) rings over that many rows, longer than the velocity filter's own settling."""
+    if dec <= 1:
+        return 0
+    n = 64
+    x = np.r_[np.zeros(n * dec), np.ones(n * dec)]
+    y = signal.decimate(x, dec, zero_phase=True) / decimation_gain(dec)
+    k = np.arange(y.size)
+    off = np.abs(y - (k >= n)) > DECIMATION_SETTLING_TOL
+    near = np.abs(k - n) < n // 2  # clear of the ends' padding
+    return int(np.max(np.abs(k[off & near] - n), initial=0))
+
+
 class Signals:
     """One run after preprocessing: full-rate filtered states and decimated regression rows.
 
