@@ -164,41 +164,28 @@ def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     assert run_loop(*runs, cfg).effects == ["asymmetric_friction", "compliance"]
 
 
-def test_a_delay_must_gain_where_the_filter_has_settled_after_reversals(monkeypatch):
-    """A clean-timing Karnopp rig driven by a fast sweep sticks at every reversal; around those
-    sticks sign(qd) of the zero-phase filtered velocity switches at the wrong instant and a force
-    shifted by 1.4 samples makes up for it (held-out t 4.3, also on rows faster than the filter's
-    blur).  On the held-out rows settled after every reversal and stop the shift gains nothing,
-    so no input delay is named (a case of the campaign's seed 23); judged on the fast rows alone,
-    it is."""
+@pytest.mark.parametrize("seed, case_id, margin", [(23, "single-012-asymmetric_friction", "filters"), (29, "single-003-asymmetric_friction", "decimation")])
+def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkeypatch, seed, case_id, margin):
+    """Clean-timing Karnopp rigs that stick at every reversal: around those sticks sign(qd) of the
+    zero-phase filtered velocity switches at the wrong instant, the force steps ring through the
+    filters, and a force shifted by a few samples makes up for it.  Seed 23 `single-012` (fast
+    sweep) fitted 1.4 samples with held-out t 4.3, also on rows faster than the velocity filter's
+    blur; seed 29 `single-003` (stiff P-PI cascade, 2 kHz) fitted 5 samples with t 4.4 even on rows
+    the velocity filter had settled on, because the decimation filter rings for about 7 rows on
+    either side.  On held-out rows clear of both the shift gains nothing, so no input delay is
+    named; without the margin that settles the case (every row, or the velocity filter's margin
+    alone), it is."""
     from gmsfric.loop import LoopConfig, run_loop
-    from gmsfric.loop import select
+    from gmsfric.loop import effects, select
 
-    runs = _campaign_runs(23, "single-012-asymmetric_friction")
+    runs = _campaign_runs(seed, case_id)
     cfg = LoopConfig(progress=False, effects=("input_delay",))
     res = run_loop(*runs, cfg)
     assert res.effects == []
     refused = [s for s in res.steps if s.effect == "input_delay"]
     assert refused and "not confirmed away from reversals" in refused[0].reason
-    monkeypatch.setattr(select, "settled_rows", lambda s: np.ones(s.n_rows, bool))
-    assert run_loop(*runs, cfg).effects == ["input_delay"]
-
-
-def test_a_delay_must_gain_beyond_the_decimation_filters_ringing(monkeypatch):
-    """A clean-timing Karnopp rig under a stiff P-PI cascade, logged at 2 kHz (campaign seed 29):
-    the force steps of its sticks ring through the decimation filter for about 7 rows on either
-    side, beyond the velocity filter's settling time, and a force shifted by 5 samples fitted that
-    (held-out t 4.4, also on the rows the velocity filter had settled on).  Rows clear of that
-    ringing confirm nothing, so no input delay is named; with the velocity filter's margin alone,
-    it is."""
-    from gmsfric.loop import LoopConfig, run_loop
-    from gmsfric.loop import effects
-
-    runs = _campaign_runs(29, "single-003-asymmetric_friction")
-    cfg = LoopConfig(progress=False, effects=("input_delay",))
-    res = run_loop(*runs, cfg)
-    assert res.effects == []
-    refused = [s for s in res.steps if s.effect == "input_delay"]
-    assert refused and "not confirmed away from reversals" in refused[0].reason
-    monkeypatch.setattr(effects, "decimation_settling_rows", lambda dec: 0)
+    if margin == "filters":
+        monkeypatch.setattr(select, "settled_rows", lambda s: np.ones(s.n_rows, bool))
+    else:
+        monkeypatch.setattr(effects, "decimation_settling_rows", lambda dec: 0)
     assert run_loop(*runs, cfg).effects == ["input_delay"]
