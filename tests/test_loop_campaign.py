@@ -137,6 +137,32 @@ def test_presliding_narrower_than_the_filter_blur_is_found(monkeypatch):
     assert run_loop(*runs, only).effects == []
 
 
+def test_presliding_blocks_that_cancel_each_other_are_refused(monkeypatch):
+    """A clean Karnopp rig at 500 Hz (campaign seed 31, no pre-sliding): three blocks, one of them
+    with a negative break force within two of its standard errors of zero, fitted the reversals
+    with held-out t 3.8 against the switch.  A negative break force is refused as fitted, and no
+    set of positive blocks gains: nothing is named; with the two-standard-error rule it is."""
+    import dataclasses
+
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop.effects import CATALOGUE
+
+    only = LoopConfig(progress=False, effects=("presliding_hysteresis",))
+    runs = _campaign_runs(31, "clean-248-clean")
+    assert run_loop(*runs, only).effects == []
+
+    def within_two_errors(p, s):
+        bad = [n for n, v in p.items() if n.startswith(("w_block", "w_switch")) and v["value"] < -2 * v["std"]]
+        return f"negative {bad[0]}" if bad else None
+
+    eff = CATALOGUE["presliding_hysteresis"]
+    monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, physical=within_two_errors))
+    res = run_loop(*runs, only)
+    assert res.effects == ["presliding_hysteresis"]
+    w = res.final.params()
+    assert min(v["value"] for n, v in w.items() if n.startswith("w_block")) < 0
+
+
 def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     """A rig with no resonance whose residual a heavily damped "load on a spring" fits (a lag,
     no peak): when an overdamped probe cross-validates best, compliance is refused (a case of the

@@ -540,9 +540,16 @@ def _load_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
 
 
 def _blocks_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
+    """A block's break force is the force its element holds: a negative one is no contact, however
+    uncertain (two or three neighbouring blocks are correlated, and a set that cancels one against
+    another fits the filters' blur at reversals, not an elastic range).  The grid's fewer-block
+    variants remain for a contact that needs fewer.  The switch, part of the null, only must not
+    be significantly negative (it may give way to a block at the resolution)."""
     for n, v in p.items():
-        if n.startswith(("w_block", "w_switch")) and v["value"] < -2 * v["std"]:
+        if n.startswith("w_block") and v["value"] < 0.0:
             return f"negative block break force {n} = {v['value']:.3g}"
+        if n.startswith("w_switch") and v["value"] < -2 * v["std"]:
+            return f"negative switch break force {n} = {v['value']:.3g}"
     return None
 
 
