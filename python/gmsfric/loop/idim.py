@@ -110,6 +110,9 @@ def decimation_settling_rows(dec: int) -> int:
     holds) rings over that many rows, longer than the velocity filter's own settling."""
     if dec <= 1:
         return 0
+    # the filter scales with the factor, so its ringing in rows barely depends on it; a capped
+    # factor keeps the probe small for very large ones
+    dec = min(dec, 50)
     n = 64
     x = np.r_[np.zeros(n * dec), np.ones(n * dec)]
     y = signal.decimate(x, dec, zero_phase=True) / decimation_gain(dec)
