@@ -166,8 +166,8 @@ def test_presliding_blocks_that_cancel_each_other_are_refused(monkeypatch):
 def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     """A rig with no resonance whose residual a heavily damped "load on a spring" fits (a lag,
     no peak): when an overdamped probe cross-validates best, compliance is refused (a case of the
-    campaign's seed 21, with the planted asymmetry found); without the probe, and judged on the
-    fast held-out rows alone, it is named."""
+    campaign's seed 21, with the planted asymmetry found); without the probe and the damping band,
+    and judged on the fast held-out rows alone, it is named."""
     import dataclasses
 
     from gmsfric.loop import LoopConfig, run_loop
@@ -180,14 +180,42 @@ def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     refused = [s for s in res.steps if s.effect == "compliance" and "no resonant peak" in s.reason]
     assert refused and "fits the estimation rows best" in refused[-1].reason
     eff = CATALOGUE["compliance"]
-    monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, probe=None))
-    # without the probe the held-out rows settled after reversals refuse it too; judged on the
-    # fast rows alone it is named
     from gmsfric.loop import select
 
+    # without the probe, the damping band leaves only resonant fits, and they gain nothing here
+    monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, probe=None))
     assert run_loop(*runs, cfg).effects == ["asymmetric_friction"]
+    # with any damping taken for a load on a spring, and judged on the fast held-out rows alone,
+    # the lag is named
+    monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, probe=None, physical=lambda p, s: None))
     monkeypatch.setattr(select, "settled_rows", lambda s: np.ones(s.n_rows, bool))
     assert run_loop(*runs, cfg).effects == ["asymmetric_friction", "compliance"]
+
+
+def test_a_force_ripple_in_time_refuses_compliance(monkeypatch):
+    """A force oscillating at one frequency whatever the motion does (a ripple in time, outside the
+    catalogue; the campaign's seed 31) is fitted best by a resonance that never stops ringing: the
+    refined damping goes below the band (< 0.01), and compliance is refused.  Without the band's
+    lower end, the ripple is named a load on a spring."""
+    import dataclasses
+
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop import effects
+
+    runs = _campaign_runs(31, "outside-215-ripple")
+    cfg = LoopConfig(progress=False, effects=("compliance",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == []
+    assert any("rings on" in s.reason for s in res.steps if s.effect == "compliance")
+    eff = effects.CATALOGUE["compliance"]
+
+    def upper_only(p, s):
+        return None if p["zeta"]["value"] <= effects.COMPLIANCE_MAX_ZETA else "no peak"
+
+    monkeypatch.setitem(effects.CATALOGUE, eff.name, dataclasses.replace(eff, physical=upper_only, probe=lambda p, s: upper_only(p, s) is not None))
+    res = run_loop(*runs, cfg)
+    assert res.effects == ["compliance"]
+    assert res.final.params()["zeta"]["value"] < effects.COMPLIANCE_MIN_ZETA
 
 
 @pytest.mark.parametrize("seed, case_id, margin", [(23, "single-012-asymmetric_friction", "filters"), (29, "single-003-asymmetric_friction", "decimation")])

@@ -443,13 +443,18 @@ def _heating_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearMo
     return out
 
 
-#: Largest damping ratio of a resonance: above it the response has no peak, and a "load on a
-#: spring" is an added mass behind a low-pass filter, which fits any smooth lag.
-COMPLIANCE_MAX_ZETA = 0.5
+#: Damping ratios of a resonance between motor and load.  Above the largest, the response rises
+#: less than 6 dB above the mass line (|H| = sqrt(1 + 4 zeta^2) / (2 zeta) < 2 at the natural
+#: frequency) and a "load on a spring" is an added mass behind a low-pass filter, which fits any
+#: smooth lag.  Below the smallest, no transmission is damped so little: the column rings on at
+#: ``fn`` long after the acceleration that excites it, which is what a force oscillating at one
+#: frequency whatever the motion does (a ripple, a tone) fits best.
+COMPLIANCE_MIN_ZETA = 0.01
+COMPLIANCE_MAX_ZETA = 0.3
 
-#: Overdamped ratios tried as probes (refused as compliance): when one of them fits best, the data
-#: prefer a lag to a resonance.
-COMPLIANCE_PROBE_ZETAS = (0.7, 1.0)
+#: Ratios tried as probes (refused as compliance): when one of them fits best, the data prefer a
+#: lag (overdamped) or a persistent tone (undamped) to a resonance.
+COMPLIANCE_PROBE_ZETAS = (0.002, 0.5, 0.7, 1.0)
 
 
 def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
@@ -458,7 +463,7 @@ def _compliance_variants(model: LinearModel, s: Signals, r: Array) -> list[Linea
     if not f_hi > 2.0:
         return out
     for fn in np.geomspace(2.0, f_hi, 18):
-        for zeta in (0.03, 0.1, 0.2, 0.4, *COMPLIANCE_PROBE_ZETAS):
+        for zeta in (0.03, 0.1, 0.2, *COMPLIANCE_PROBE_ZETAS):
             t = Term("compliance", ("m_load",), lambda s, h: _compliance(s, h[0], h[1]), (float(fn), zeta), ("fn_hz", "zeta"))
             out.append(_add(model, t, "compliance"))
     return out
@@ -536,6 +541,9 @@ def _load_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     zeta = p["zeta"]["value"] if "zeta" in p else 0.0
     if zeta > COMPLIANCE_MAX_ZETA:
         return f"a damping ratio of {zeta:.2g} leaves no resonant peak: a lag, not a resonance"
+    if zeta < COMPLIANCE_MIN_ZETA:
+        return (f"a damping ratio of {zeta:.2g} rings on long after the motion that excites it: a force oscillating at one "
+                "frequency (a ripple, a tone), not a load on a spring")
     return None
 
 
@@ -568,8 +576,8 @@ CATALOGUE: dict[str, Effect] = {
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok,
                probe=lambda p, s: p["heating_tau_s"]["value"] < HEATING_MIN_TAU_S),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
-               refine=lambda s: [(1.0, resonance_limit(s)), (0.01, COMPLIANCE_MAX_ZETA)], whole_motion=True,
-               probe=lambda p, s: p["zeta"]["value"] > COMPLIANCE_MAX_ZETA),
+               refine=lambda s: [(1.0, resonance_limit(s)), (min(COMPLIANCE_PROBE_ZETAS), max(COMPLIANCE_PROBE_ZETAS))], whole_motion=True,
+               probe=lambda p, s: not COMPLIANCE_MIN_ZETA <= p["zeta"]["value"] <= COMPLIANCE_MAX_ZETA),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }

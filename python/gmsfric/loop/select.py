@@ -550,14 +550,18 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
     if best_invalid is not None and (best is None or best_invalid[0] < best[0]):
         return None, float("nan"), f"{best_invalid[1]}; that fits the estimation rows best"
     if best is not None and eff.refine is not None:
-        best = _refine_hyper(eff, best, st, cfg)
+        best, beyond = _refine_hyper(eff, best, st, cfg)
+        if beyond is not None:
+            return None, float("nan"), f"{beyond}; the refined fit goes there"
     return (best[1], best[0], why) if best is not None else (None, float("nan"), why)
 
 
-def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg: LoopConfig) -> tuple[float, LinearModel]:
+def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg: LoopConfig) -> tuple[tuple[float, LinearModel], str | None]:
     """The effect's nonlinear parameters refined from the best grid variant (Nelder-Mead on their
     logarithms, within the effect's bounds, on the same cross-validated error); the grid variant
-    stays when nothing better is found or the refined fit is not physical."""
+    stays when nothing better is found or the refined fit is not physical.  The bounds may reach
+    into the probes' range: a refined fit that ends there is returned with the reason it is not
+    physical (the data prefer what the effect is not, as when a probe wins on the grid)."""
     cv0, m0 = best
     term = next(t for t in m0.terms if t.name == eff.name)
     bounds = np.log(np.asarray(eff.refine(st.split.est), dtype=float))  # type: ignore[misc]
@@ -574,11 +578,12 @@ def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg:
     z0 = np.clip(np.log(np.asarray(term.hyper, dtype=float)), bounds[:, 0], bounds[:, 1])
     res = optimize.minimize(objective, z0, method="Nelder-Mead", options={"maxfev": 60, "xatol": 1e-3, "fatol": 1e-6 * cv0})
     if not (np.isfinite(res.fun) and res.fun < cv0):
-        return best
+        return best, None
     m = variant(res.x)
-    if eff.physical is not None and eff.check(_fit(m, st.split), st.split.est) is not None:
-        return best
-    return (float(res.fun), m)
+    if eff.physical is not None and (why := eff.check(_fit(m, st.split), st.split.est)) is not None:
+        beyond = eff.probe is not None and eff.probe(m.params(), st.split.est)
+        return best, (why if beyond else None)
+    return (float(res.fun), m), None
 
 
 def _joint_refit(st: _State, cfg: LoopConfig, rnd: int) -> None:
@@ -610,7 +615,7 @@ def _joint_refit(st: _State, cfg: LoopConfig, rnd: int) -> None:
             if cv < cur_cv:
                 cur_cv, model = cv, cand
         if eff.refine is not None:
-            cur_cv, model = _refine_hyper(eff, (cur_cv, model), st, cfg)
+            (cur_cv, model), _ = _refine_hyper(eff, (cur_cv, model), st, cfg)
     model = _fit(model, split)
     st.model = _align(model, split, cfg, st.alignment, rnd, st.chunk) if st.alignment else model
     st.err = split.errors(st.model)
