@@ -218,6 +218,28 @@ def test_a_force_ripple_in_time_refuses_compliance(monkeypatch):
     assert res.final.params()["zeta"]["value"] < effects.COMPLIANCE_MIN_ZETA
 
 
+def test_a_stribeck_dip_only_at_reversals_is_refused(monkeypatch):
+    """A clean GMS contact (elastic range far below the encoder step; the campaign's seed 33) whose
+    force, against the filtered velocity, looks lower at low speed: a Stribeck *dip* that gains
+    only through reversals and is contradicted on the rows clear of them, so it is refused there;
+    without that check it is named."""
+    import dataclasses
+
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop.effects import CATALOGUE
+
+    runs = _campaign_runs(33, "clean-233-clean")
+    cfg = LoopConfig(progress=False, effects=("stribeck",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == []
+    refused = [s for s in res.steps if s.effect == "stribeck" and "not confirmed away from reversals" in s.reason]
+    assert refused and refused[0].parameters["Fs_minus_Fc"]["value"] < 0
+    eff = CATALOGUE["stribeck"]
+    monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, clear_of_reversals=None))
+    res = run_loop(*runs, cfg)
+    assert res.effects == ["stribeck"] and res.final.params()["Fs_minus_Fc"]["value"] < 0
+
+
 @pytest.mark.parametrize("seed, case_id, margin", [(23, "single-012-asymmetric_friction", "filters"), (29, "single-003-asymmetric_friction", "decimation")])
 def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkeypatch, seed, case_id, margin):
     """Clean-timing Karnopp rigs that stick at every reversal: around those sticks sign(qd) of the

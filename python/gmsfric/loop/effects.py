@@ -158,6 +158,11 @@ class Effect:
         nonlinear parameter on purpose (``physical`` refuses it).  Such variants are fitted too,
         and when one of them cross-validates best the effect is refused: the data prefer what the
         effect is not, and its nearest physical variant would only be a proxy.
+    clear_of_reversals : callable, optional
+        ``clear_of_reversals(params) -> bool``: whether a fit that looks like what the filters make
+        of a reversal (a Stribeck *dip*) must also gain on the rows clear of reversals and stops,
+        at the nominal level ``alpha``: a consistency check of an effect already found on all
+        rows, so not corrected for the family of tests.
     null : callable, optional
         ``null(term) -> Term``: the part of the effect's term that is no evidence for the effect
         on its own.  The effect's tests (held-out, cross-validated, BIC; forward, in pairs and
@@ -174,11 +179,22 @@ class Effect:
     whole_motion: bool = False
     probe: Callable[[dict[str, dict[str, float]], Signals], bool] | None = None
     null: Callable[[Term], Term] | None = None
+    clear_of_reversals: Callable[[dict[str, dict[str, float]]], bool] | None = None
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
         it is)."""
         return None if self.physical is None else self.physical(model.params(), s)
+
+    def level_clear_of_reversals(self, model: LinearModel, level: float, alpha: float) -> float | None:
+        """Level at which the fitted ``model``'s term must also gain on the held-out rows clear of
+        reversals and stops: the family-wise ``level`` for a whole-motion effect, the nominal
+        ``alpha`` for a fit :attr:`clear_of_reversals` flags, ``None`` (no such test) otherwise."""
+        if self.whole_motion:
+            return level
+        if self.clear_of_reversals is not None and self.clear_of_reversals(model.params()):
+            return alpha
+        return None
 
     def applicable(self, model: LinearModel) -> bool:
         return self.name not in model.effects and not (self.name == "offset" and any(t.name == "offset" for t in model.terms))
@@ -260,6 +276,14 @@ def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
         t = Term("stribeck", ("Fs_minus_Fc",), lambda s, h: np.sign(s.qd) * curves.stribeck_shape(s.qd, h[0], h[1]), (vs, delta), ("vs", "stribeck_delta"))
         out.append(_add(model, t, "stribeck"))
     return out
+
+
+def _stribeck_dip(p: dict[str, dict[str, float]]) -> bool:
+    """A *dip* (friction lower at low speed than sliding, ``Fs < Fc``) is what the switch of
+    friction at a reversal looks like through the velocity filter and the decimation filter, and
+    low speeds are mostly reversals: a dip must also gain on the rows clear of them, where that
+    blur is absent (a hump, the opposite of the blur, is not checked there)."""
+    return "Fs_minus_Fc" in p and p["Fs_minus_Fc"]["value"] < 0
 
 
 #: Widths (times the run's top speed) of the probe curves that are a drag across the motion.
@@ -566,7 +590,7 @@ CATALOGUE: dict[str, Effect] = {
     for e in (
         Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric),
         Effect("stribeck", "friction changes from its level at rest to its sliding level at low speed (Stribeck curve)", "velocity", _stribeck, _stribeck_ok,
-               probe=lambda p, s: p["vs"]["value"] > s.v_scale),
+               probe=lambda p, s: p["vs"]["value"] > s.v_scale, clear_of_reversals=_stribeck_dip),
         Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok,
                null=reversal_switch),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),

@@ -684,7 +684,8 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 e_est, e_val = split.errors(m)
                 null = st.model if eff.null is None else _fit(_reduced(m, eff.name, split.est.dt), split)
                 h = heldout(split, null, m, st.chunk)
-                h_far = heldout(split, null, m, st.chunk, far) if eff.whole_motion and far.sum() >= 2 * st.chunk else None
+                far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
+                h_far = heldout(split, null, m, st.chunk, far) if far_level is not None and far.sum() >= 2 * st.chunk else None
                 sse_null = sse_cur if eff.null is None else _sse(null, split)
                 dbic = n_est * np.log(_sse(m, split) / sse_null) + (m.n_params - null.n_params) * np.log(n_est)
                 change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
@@ -706,13 +707,14 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 if h.p > level or h.t < cfg.t_threshold:
                     reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {level:.2g})" if h.p > level
                                    else f"held-out t = {h.t:.2f} < {cfg.t_threshold}")
-                if eff.whole_motion and h_far is None:
+                if far_level is not None and h_far is None:
                     reasons.append("too few held-out rows clear of reversals and stops to confirm it")
-                if h_far is not None:
+                if h_far is not None and far_level is not None:
                     ev["t_heldout_away_from_reversals"] = round(h_far.t, 2)
-                    if h_far.p > level or h_far.t < cfg.t_threshold:
-                        reasons.append(f"not confirmed away from reversals (t = {h_far.t:.2f}, p = {h_far.p:.2g}): it acts on the whole "
-                                       "motion, and a gain only where the axis reverses or sticks is the switch of friction")
+                    if h_far.p > far_level or (eff.whole_motion and h_far.t < cfg.t_threshold):
+                        reasons.append(f"not confirmed away from reversals (t = {h_far.t:.2f}, p = {h_far.p:.2g} > {far_level:.2g}): "
+                                       + ("it acts on the whole motion, and a gain only where the axis reverses or sticks is the switch of friction"
+                                          if eff.whole_motion else "a dip only where the axis reverses or sticks is the switch of friction seen through the filters"))
                 if dbic >= 0:
                     reasons.append(f"BIC does not decrease ({dbic:+.1f})")
                 if implausible is not None:
@@ -794,9 +796,10 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             hm = heldout(split, reduced, both, st.chunk)
             ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain >= cfg.min_gain
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
-            if eff.whole_motion:
+            far_level = eff.level_clear_of_reversals(both, level, cfg.alpha)
+            if far_level is not None:
                 hf = heldout(split, reduced, both, st.chunk, far) if far.sum() >= 2 * st.chunk else None
-                ok = ok and hf is not None and hf.p <= level and hf.t >= cfg.t_threshold
+                ok = ok and hf is not None and hf.p <= far_level and (not eff.whole_motion or hf.t >= cfg.t_threshold)
                 mg["t_heldout_away_from_reversals"] = round(hf.t, 2) if hf is not None else None
             marginals[eff.name] = mg
             if not ok:
