@@ -124,6 +124,28 @@ def test_jittered_log_is_resampled_not_refused(tmp_path):
     assert d.rotary
 
 
+def test_a_resampled_log_keeps_the_encoder_step_as_its_resolution():
+    """Interpolating a quantised position onto a uniform grid puts values between the encoder's
+    steps: the resolution (which bounds pre-sliding blocks, the switch at reversals and the
+    standstill test) is the step as logged, not the smallest change after the resampling."""
+    from gmsfric.loop import AxisData, Signals
+    from gmsfric.loop.data import quantisation_step
+
+    rng = np.random.default_rng(5)
+    k = np.arange(4000)
+    t = k * 0.01 + np.where(rng.random(k.size) < 0.3, rng.uniform(0.001, 0.008, k.size), 0.0)
+    step = 5e-5
+    q = step * np.round(0.02 * np.sin(2 * np.pi * 0.1 * t) / step)  # a few steps per sample
+    f = 3.0 * np.cos(2 * np.pi * 0.1 * t) + 0.5 * np.sign(np.cos(2 * np.pi * 0.1 * t))
+    d = AxisData(t, q, f, rotary=True)
+    assert d.timing["resampled"]
+    assert d.timing["position_step_as_logged"] == pytest.approx(step, rel=1e-6)
+    assert quantisation_step(d.position) < 0.5 * step  # what the resampled log alone would say
+    assert Signals(d).resolution == pytest.approx(step, rel=1e-6)
+    uniform = AxisData(k * 0.01, step * np.round(0.02 * np.sin(2 * np.pi * 0.1 * k * 0.01) / step), f)
+    assert "position_step_as_logged" not in uniform.timing and Signals(uniform).resolution == pytest.approx(step, rel=1e-6)
+
+
 def test_uniform_log_is_left_alone(tmp_path):
     t, q, f = _run()
     t = t + 1e-9 * np.random.default_rng(0).standard_normal(t.size)  # rounding in a text file

@@ -48,7 +48,8 @@ class AxisData:
         A rotary axis: positions in rad and forces in N m (torques) instead of m and N.
     timing : dict
         The sampling of the time column as read (see :func:`timing_summary`), and whether and
-        how the run was resampled.
+        how the run was resampled; then also ``position_step_as_logged`` (m or rad), the encoder
+        step before the interpolation put positions between steps (the position resolution).
     """
 
     t: NDArray[np.float64]
@@ -98,6 +99,8 @@ class AxisData:
         recipe need a uniform grid, and a timing error of a fraction of a step is far smaller
         than the dynamics the loop identifies.  The measured jitter stays in ``timing``."""
         step = self.timing["median_step_s"]
+        # interpolation puts positions between the encoder's steps: keep the step as logged
+        self.timing["position_step_as_logged"] = quantisation_step(self.position)
         n = int(np.floor((self.t[-1] - self.t[0]) / step + 1e-9)) + 1
         tu = self.t[0] + step * np.arange(n)
         for name in ("position", "force", "command", "reference", "disturbance"):
@@ -115,6 +118,15 @@ class AxisData:
 
     def __len__(self) -> int:
         return int(self.t.size)
+
+
+def quantisation_step(position: NDArray[np.float64]) -> float:
+    """Smallest position change a quantised log resolves (its encoder step): the 1st percentile of
+    the non-zero sample-to-sample changes; 0 when the position never changes."""
+    d = np.abs(np.diff(position))
+    span = float(np.ptp(position)) or 1.0
+    nz = d[d > 1e-12 * span]
+    return float(np.percentile(nz, 1)) if nz.size else 0.0
 
 
 #: Relative spread of the time steps above which a log counts as irregular and is resampled.

@@ -24,7 +24,7 @@ from scipy import ndimage, signal
 
 from .._validate import count, finite
 from ..errors import IdentificationError, InvalidInputError
-from .data import AxisData
+from .data import AxisData, quantisation_step
 
 Array = NDArray[np.float64]
 
@@ -71,14 +71,13 @@ class Preprocessing:
 REST_FRACTION = 0.01
 
 
-def position_resolution(raw: Array, filtered: Array) -> float:
+def position_resolution(raw: Array, filtered: Array, logged_step: float | None = None) -> float:
     """Smallest position change the data resolve: the encoder step of a quantised position (the
-    smallest non-zero sample-to-sample change) or, when the position is noisy rather than
-    quantised, the noise level (robust spread of raw minus filtered position)."""
-    d = np.abs(np.diff(raw))
+    smallest non-zero sample-to-sample change; ``logged_step``, that step measured before a
+    resampling, when the run was resampled) or, when the position is noisy rather than quantised,
+    the noise level (robust spread of raw minus filtered position)."""
     span = float(np.ptp(raw)) or 1.0
-    nz = d[d > 1e-12 * span]
-    step = float(np.percentile(nz, 1)) if nz.size else 0.0
+    step = quantisation_step(raw) if logged_step is None else float(logged_step)
     hf = raw - filtered
     noise = float(1.4826 * np.median(np.abs(hf - np.median(hf))))
     return max(step, noise, 1e-12 * span)
@@ -171,7 +170,7 @@ class Signals:
         self.y = self.decimate(data.force)
         self.rows = {"t": self.decimate(self.t), "q": self.decimate(q), "qd": self.decimate(qd), "qdd": self.decimate(qdd)}
         #: Position resolution (m or rad): the encoder step, or the noise of the raw position.
-        self.resolution = position_resolution(data.position, q)
+        self.resolution = position_resolution(data.position, q, data.timing.get("position_step_as_logged"))
         #: Speed below which a row is at rest (the estimation run's threshold for a validation run).
         self.rest_speed = float(rest_speed) if rest_speed is not None else REST_FRACTION * self.v_scale
         # A sample is stuck when the measured position does not change by more than its

@@ -237,7 +237,9 @@ def format_table(result: "LoopResult") -> str:
     for run, t in (tm.items() if "estimation" in tm else [("estimation", tm)]):
         if t.get("resampled"):
             lines.append(f"  {run} log resampled onto a uniform {t['median_step_s'] * 1e3:.4g} ms grid (steps from {t['min_step_s'] * 1e3:.4g} to "
-                         f"{t['max_step_s'] * 1e3:.4g} ms, {t['irregular_steps_pct']:.1f} % irregular)")
+                         f"{t['max_step_s'] * 1e3:.4g} ms, {t['irregular_steps_pct']:.1f} % irregular)"
+                         + (f"; position step as logged {_units.format_value(t['position_step_as_logged'], 'position', rot)}"
+                            if "position_step_as_logged" in t else ""))
     for s in d["steps"]:
         e = "   n/a" if s["estimation_error_pct"] is None else f"{s['estimation_error_pct']:8.3f}"
         v = "   n/a" if s["validation_error_pct"] is None else f"{s['validation_error_pct']:8.3f}"
