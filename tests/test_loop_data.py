@@ -142,6 +142,10 @@ def test_a_resampled_log_keeps_the_encoder_step_as_its_resolution():
     assert d.timing["position_step_as_logged"] == pytest.approx(step, rel=1e-6)
     assert quantisation_step(d.position) < 0.5 * step  # what the resampled log alone would say
     assert Signals(d).resolution == pytest.approx(step, rel=1e-6)
+    # a logged step that is no length within the travel (hand-made timing) is not trusted
+    for bad in (float("nan"), -1.0, 1e300, "50 um"):
+        odd = AxisData(d.t, d.position, d.force, rotary=True, timing={**d.timing, "position_step_as_logged": bad})
+        assert Signals(odd).resolution == pytest.approx(Signals(AxisData(d.t, d.position, d.force, rotary=True, timing={"irregular": False})).resolution)
     uniform = AxisData(k * 0.01, step * np.round(0.02 * np.sin(2 * np.pi * 0.1 * k * 0.01) / step), f)
     assert "position_step_as_logged" not in uniform.timing and Signals(uniform).resolution == pytest.approx(step, rel=1e-6)
 

@@ -77,7 +77,11 @@ def position_resolution(raw: Array, filtered: Array, logged_step: float | None =
     resampling, when the run was resampled) or, when the position is noisy rather than quantised,
     the noise level (robust spread of raw minus filtered position)."""
     span = float(np.ptp(raw)) or 1.0
-    step = quantisation_step(raw) if logged_step is None else float(logged_step)
+    # a logged step is only a step if it is a positive length within the travel
+    if isinstance(logged_step, (int, float)) and np.isfinite(logged_step) and 0.0 < logged_step <= span:
+        step = float(logged_step)
+    else:
+        step = quantisation_step(raw)
     hf = raw - filtered
     noise = float(1.4826 * np.median(np.abs(hf - np.median(hf))))
     return max(step, noise, 1e-12 * span)
