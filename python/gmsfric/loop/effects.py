@@ -158,6 +158,11 @@ class Effect:
         nonlinear parameter on purpose (``physical`` refuses it).  Such variants are fitted too,
         and when one of them cross-validates best the effect is refused: the data prefer what the
         effect is not, and its nearest physical variant would only be a proxy.
+    contested : callable, optional
+        ``contested(params, est_signals) -> bool``: whether a variant that ``physical`` refuses is
+        one the data may still single out: it stands when it cross-validates clearly better than
+        every probe (its error at most ``select.CONTESTED_MARGIN`` times theirs), since the
+        probes are what it would otherwise be taken for.
     clear_of_reversals : callable, optional
         ``clear_of_reversals(params) -> bool``: whether a fit that looks like what the filters make
         of a reversal (a Stribeck *dip*) must also gain on the rows clear of reversals and stops,
@@ -180,6 +185,7 @@ class Effect:
     probe: Callable[[dict[str, dict[str, float]], Signals], bool] | None = None
     null: Callable[[Term], Term] | None = None
     clear_of_reversals: Callable[[dict[str, dict[str, float]]], bool] | None = None
+    contested: Callable[[dict[str, dict[str, float]], Signals], bool] | None = None
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
@@ -449,7 +455,9 @@ def _drift_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearMode
 
 
 #: Time constants of ``heating``, in seconds: thermal, never faster than a second (a faster
-#: "memory" of the speed is a velocity-dependent friction), up to twice the run.
+#: "memory" of the speed is a velocity-dependent friction), and shorter than the run.  Memories up
+#: to twice the run are tried as probes: over a memory as long as the run the low-passed speed only
+#: grows with the distance travelled, a trend that a drift in time fits as well.
 HEATING_MIN_TAU_S = 1.0
 
 
@@ -506,6 +514,16 @@ def _offset(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
 
 
 def _stribeck_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
+    if (why := _stribeck_curve_ok(p, s)) is not None:
+        return why
+    if _hump_never_falls(p, s):
+        return (f"the friction never falls below its level at rest (by {stribeck_fall(p, s.v_scale):.3g}, less than {HUMP_MIN_FALL:g} x "
+                f"(Fs - Fc) = {p['Fs_minus_Fc']['value']:.3g}) within the run's speeds: the viscous slope outweighs the hump, a convex "
+                "velocity curve (drag) fits about the same")
+    return None
+
+
+def _stribeck_curve_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     # The curve may fall or rise towards rest (friction lower at low speed happens, e.g. in a
     # preloaded screw); what must hold is a positive friction level at rest, Fs = Fc + (Fs - Fc),
     # and a dip must be wider than the blur of the filtered velocity through a reversal.
@@ -521,10 +539,20 @@ def _stribeck_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     if ds < 0 and "vs" in p and curves.stribeck_shape(dip := dip_resolution(s), p["vs"]["value"], p.get("stribeck_delta", {"value": 1.0})["value"]) < 0.5:
         return (f"a dip (Fs - Fc = {ds:.3g}) of width vs = {p['vs']['value']:.3g} keeps less than half its depth beyond the velocity "
                 f"filter's blur through a reversal ({dip:.3g}): the switch of sign(qd) looks like that")
-    if ds > 0 and "vs" in p and (fall := stribeck_fall(p, s.v_scale)) < HUMP_MIN_FALL * ds:
-        return (f"the friction never falls below its level at rest (by {fall:.3g}, less than {HUMP_MIN_FALL:g} x (Fs - Fc) = {ds:.3g}) "
-                f"within the run's speeds: the viscous slope outweighs the hump, a convex velocity curve (drag) fits the same")
     return None
+
+
+def _hump_never_falls(p: dict[str, dict[str, float]], s: Signals) -> bool:
+    """A hump that the viscous slope outweighs: friction that only bends upward out of rest."""
+    ds = p["Fs_minus_Fc"]["value"] if "Fs_minus_Fc" in p else 0.0
+    return ds > 0 and "vs" in p and stribeck_fall(p, s.v_scale) < HUMP_MIN_FALL * ds
+
+
+def _contested_hump(p: dict[str, dict[str, float]], s: Signals) -> bool:
+    """A physical Stribeck curve but for a hump that never falls.  A drag bends upward too; such a
+    hump is named only when it fits clearly better than the drag probes (:attr:`Effect.contested`),
+    i.e. when its bend sits at low speed."""
+    return _stribeck_curve_ok(p, s) is None and _hump_never_falls(p, s)
 
 
 #: Smallest fall of the friction below its level at rest, as a fraction of ``Fs - Fc``, for a hump
@@ -554,6 +582,9 @@ def _heating_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
     if tau < HEATING_MIN_TAU_S:
         return (f"a memory of {tau:.2g} s is shorter than a thermal one ({HEATING_MIN_TAU_S:g} s): the friction follows the current "
                 "speed, a velocity curve (e.g. a drag), not heating")
+    if tau >= s.duration:
+        return (f"a memory of {tau:.3g} s is as long as the run ({s.duration:.3g} s): the low-passed speed only grows with the "
+                "distance travelled, a trend over the run that a drift in time fits as well, not heating")
     return None
 
 
@@ -590,7 +621,7 @@ CATALOGUE: dict[str, Effect] = {
     for e in (
         Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric),
         Effect("stribeck", "friction changes from its level at rest to its sliding level at low speed (Stribeck curve)", "velocity", _stribeck, _stribeck_ok,
-               probe=lambda p, s: p["vs"]["value"] > s.v_scale, clear_of_reversals=_stribeck_dip),
+               probe=lambda p, s: p["vs"]["value"] > s.v_scale, clear_of_reversals=_stribeck_dip, contested=_contested_hump),
         Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok,
                null=reversal_switch),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
@@ -598,7 +629,7 @@ CATALOGUE: dict[str, Effect] = {
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok,
-               probe=lambda p, s: p["heating_tau_s"]["value"] < HEATING_MIN_TAU_S),
+               probe=lambda p, s: not HEATING_MIN_TAU_S <= p["heating_tau_s"]["value"] < s.duration),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
                refine=lambda s: [(1.0, resonance_limit(s)), (min(COMPLIANCE_PROBE_ZETAS), max(COMPLIANCE_PROBE_ZETAS))], whole_motion=True,
                probe=lambda p, s: not COMPLIANCE_MIN_ZETA <= p["zeta"]["value"] <= COMPLIANCE_MAX_ZETA),
