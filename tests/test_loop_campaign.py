@@ -334,8 +334,9 @@ def test_accepted_effects_are_chosen_again_with_each_candidate(monkeypatch):
 def test_a_heating_memory_as_long_as_the_run_is_a_drift(monkeypatch):
     """On the same rig, friction that drifts linearly in time: heating with a memory twice the run
     (the low-passed speed then grows with the distance travelled) gains slightly more on held-out
-    data than the drift itself.  A memory as long as the run is a probe, so heating is refused and
-    the drift is named; with every memory from a second up counted as heating, heating is named."""
+    data than the drift itself.  Two guards refuse it, each on its own: a memory as long as the
+    run is a probe, and heating is tested against its own trend in time (the same memory driven
+    by the run's mean speed).  With neither, heating is named instead of the drift."""
     import dataclasses
 
     from gmsfric.loop import LoopConfig, run_loop
@@ -347,9 +348,13 @@ def test_a_heating_memory_as_long_as_the_run_is_a_drift(monkeypatch):
     assert res.effects == ["compliance", "friction_drift"]
     assert any("as long as the run" in s.reason for s in res.steps if s.effect == "heating")
     eff = CATALOGUE["heating"]
-    monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(
-        eff, physical=lambda p, s: None if p["heating_tau_s"]["value"] >= HEATING_MIN_TAU_S else "fast",
-        probe=lambda p, s: p["heating_tau_s"]["value"] < HEATING_MIN_TAU_S))
+    any_slow_memory = dict(physical=lambda p, s: None if p["heating_tau_s"]["value"] >= HEATING_MIN_TAU_S else "fast",
+                           probe=lambda p, s: p["heating_tau_s"]["value"] < HEATING_MIN_TAU_S)
+    monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, **any_slow_memory))
+    assert run_loop(*runs, cfg).effects == ["compliance", "friction_drift"]
+    monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, null=None))
+    assert run_loop(*runs, cfg).effects == ["compliance", "friction_drift"]
+    monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, null=None, **any_slow_memory))
     assert "heating" in run_loop(*runs, cfg).effects
 
 

@@ -121,6 +121,21 @@ def _heating(s: Signals, tau: float) -> Array:
     return np.column_stack([np.sign(s.qd) * m, s.qd * m])
 
 
+def _heating_trend(s: Signals, tau: float) -> Array:
+    a = float(np.exp(-s.dt / tau))
+    x = np.abs(s.qd)
+    m = signal.lfilter([1.0 - a], [1.0, -a], np.full_like(x, x.mean()), zi=[a * x[0]])[0]
+    return np.column_stack([np.sign(s.qd) * m, s.qd * m])
+
+
+def heating_trend(term: Term) -> Term:
+    """Heating's trend in time alone: the same memory driven by the run's mean speed.  Over a
+    steady motion the low-passed speed is that trend, a friction changing with time only (what
+    ``friction_drift`` fits); heating is evidence of itself only where the friction follows the
+    motion's changes of pace, so it is tested against the model with this trend."""
+    return Term(term.name, ("dFc_heating_trend", "dFv_heating_trend"), lambda s, h: _heating_trend(s, h[0]), term.hyper, term.hyper_names)
+
+
 def _drift(s: Signals, tau_frac: float) -> Array:
     T = max(s.duration, 1e-9)
     h = (s.t / T - 0.5) if tau_frac <= 0 else np.exp(-s.t / (tau_frac * T))
@@ -629,7 +644,7 @@ CATALOGUE: dict[str, Effect] = {
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok,
-               probe=lambda p, s: not HEATING_MIN_TAU_S <= p["heating_tau_s"]["value"] < s.duration),
+               probe=lambda p, s: not HEATING_MIN_TAU_S <= p["heating_tau_s"]["value"] < s.duration, null=heating_trend),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
                refine=lambda s: [(1.0, resonance_limit(s)), (min(COMPLIANCE_PROBE_ZETAS), max(COMPLIANCE_PROBE_ZETAS))], whole_motion=True,
                probe=lambda p, s: not COMPLIANCE_MIN_ZETA <= p["zeta"]["value"] <= COMPLIANCE_MAX_ZETA),

@@ -38,6 +38,7 @@ _PARAMETER_QUANTITIES = {
     "stribeck_delta": "dimensionless", "zeta": "dimensionless", "drift_tau_over_T": "dimensionless",
     "delay_s": "time", "sampling_hold_s": "time", "heating_tau_s": "time",
     "dFc_heating": "damping", "dFv_heating": "damping_per_velocity",
+    "dFc_heating_trend": "damping", "dFv_heating_trend": "damping_per_velocity",
     "fn_hz": "frequency",
 }
 _PARAMETER_PATTERNS = (

@@ -684,22 +684,24 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             fnd, r_est = _residual_rows(st, cfg)
             if rnd == 1:
                 st.findings["baseline_estimation"] = list(fnd.values())
-            cv_cur = _cv(st.model, split, cfg)
-            sse_cur = _sse(st.model, split)
             cands: list[tuple[float, Effect, LinearModel]] = []
+            nulls: dict[str, LinearModel] = {}
             applicable = [CATALOGUE[n] for n in names if CATALOGUE[n].applicable(st.model)]
             for eff in applicable:
                 prog.update(note=f"round {rnd}: {eff.name}")
                 m, cv, why = _best_variant(eff, st.model, st, cfg, r_est, prog)
-                if m is not None and st.model.effects:
-                    # the accepted effects' grid parameters were chosen without this one, which
-                    # may have pulled them (a resonance's frequency absorbing a drift): choose
-                    # them again with it, then its own given theirs
-                    m = _rechoose(m, list(st.model.effects) + [eff.name], st, cfg)
-                    cv = _cv(m, split, cfg)
                 if m is not None:
-                    cv_null = cv_cur if eff.null is None else _cv(_reduced(m, eff.name, split.est.dt), split, cfg)
-                    cands.append((1.0 - cv / cv_null, eff, m))
+                    null = _tested_against(m, eff.name, st)
+                    if st.model.effects:
+                        # the accepted effects' grid parameters were chosen without this one, which
+                        # may have pulled them (a resonance's frequency absorbing a drift): choose
+                        # them again with it, then its own given theirs; and choose them again
+                        # without it from there, so that it is credited only with what it enables
+                        m = _rechoose(m, list(st.model.effects) + [eff.name], st, cfg)
+                        cv = _cv(m, split, cfg)
+                        null = _rechoose(_tested_against(m, eff.name, st), list(st.model.effects), st, cfg)
+                    nulls[eff.name] = _fit(null, split)
+                    cands.append((1.0 - cv / _cv(null, split, cfg), eff, m))
                 elif why is not None:
                     f = fnd.get(eff.evidence)
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
@@ -712,12 +714,14 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
                 _fit(m, split)
                 e_est, e_val = split.errors(m)
-                null = st.model if eff.null is None else _fit(_reduced(m, eff.name, split.est.dt), split)
+                null = nulls[eff.name]
                 h = heldout(split, null, m, st.chunk)
+                # the whole must also beat the current model (the others chosen again without
+                # the effect may have landed somewhere worse)
+                h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects else h
                 far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
                 h_far = heldout(split, null, m, st.chunk, far) if far_level is not None and far.sum() >= 2 * st.chunk else None
-                sse_null = sse_cur if eff.null is None else _sse(null, split)
-                dbic = n_est * np.log(_sse(m, split) / sse_null) + (m.n_params - null.n_params) * np.log(n_est)
+                dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
                 change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
                 ev: dict[str, Any] = {}
                 f = fnd.get(eff.evidence)
@@ -737,6 +741,11 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 if h.p > level or h.t < cfg.t_threshold:
                     reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {level:.2g})" if h.p > level
                                    else f"held-out t = {h.t:.2f} < {cfg.t_threshold}")
+                if h_cur is not h:
+                    ev["t_heldout_against_current_model"] = round(h_cur.t, 2)
+                    if h_cur.p > level or h_cur.gain < cfg.min_gain:
+                        reasons.append(f"with the others' parameters chosen again, no better than the current model (held-out gain "
+                                       f"{100 * h_cur.gain:.2f} %, t = {h_cur.t:.2f}, p = {h_cur.p:.2g})")
                 if far_level is not None and h_far is None:
                     reasons.append("too few held-out rows clear of reversals and stops to confirm it")
                 if h_far is not None and far_level is not None:
@@ -771,6 +780,16 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             _joint_refit(st, cfg, rnd)
             _backward(st, cfg, rnd, step.effect)
             step.parameters = st.model.params() if step.effect in st.model.effects else step.parameters
+
+
+def _tested_against(m: LinearModel, effect: str, st: _State) -> LinearModel:
+    """What the ``effect`` of a candidate ``m`` is tested against (unfitted): ``m`` without it,
+    the part of its term that is no evidence on its own kept (:func:`_reduced`), every other
+    term as ``m`` has it, and the current model's timing alignment."""
+    out = _reduced(m, effect, st.split.est.dt)
+    if effect == "input_delay":
+        out.delay, out.extras = st.model.delay, dict(st.model.extras)
+    return out
 
 
 def _combine(a: LinearModel, b: LinearModel, b_name: str, dt: float) -> LinearModel:
@@ -823,10 +842,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
         marginals: dict[str, dict[str, Any]] = {}
         passed = True
         for eff, other in ((ea, eb), (eb, ea)):
-            reduced = _reduced(both, eff.name, dt)
-            if eff.name == "input_delay":  # back to the model's own timing alignment
-                reduced.delay, reduced.extras = st.model.delay, dict(st.model.extras)
-            _fit(reduced, split)
+            reduced = _fit(_tested_against(both, eff.name, st), split)
             hm = heldout(split, reduced, both, st.chunk)
             ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain >= cfg.min_gain
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
