@@ -121,19 +121,18 @@ def _heating(s: Signals, tau: float) -> Array:
     return np.column_stack([np.sign(s.qd) * m, s.qd * m])
 
 
-def _heating_trend(s: Signals, tau: float) -> Array:
-    a = float(np.exp(-s.dt / tau))
-    x = np.abs(s.qd)
-    m = signal.lfilter([1.0 - a], [1.0, -a], np.full_like(x, x.mean()), zi=[a * x[0]])[0]
-    return np.column_stack([np.sign(s.qd) * m, s.qd * m])
-
-
 def heating_trend(term: Term) -> Term:
-    """Heating's trend in time alone: the same memory driven by the run's mean speed.  Over a
-    steady motion the low-passed speed is that trend, a friction changing with time only (what
-    ``friction_drift`` fits); heating is evidence of itself only where the friction follows the
-    motion's changes of pace, so it is tested against the model with this trend."""
+    """Heating's trend in time alone: a friction change that decays with the same time constant
+    whatever the motion does (a drift, ``(dFc sign(qd) + dFv qd) exp(-t / tau)``).  Over a steady
+    motion the low-passed speed is just that; heating is evidence of itself only where the
+    friction follows the motion's changes of pace, so it is tested against the model with this
+    trend."""
     return Term(term.name, ("dFc_heating_trend", "dFv_heating_trend"), lambda s, h: _heating_trend(s, h[0]), term.hyper, term.hyper_names)
+
+
+def _heating_trend(s: Signals, tau: float) -> Array:
+    h = np.exp(-s.t / tau)
+    return np.column_stack([np.sign(s.qd) * h, s.qd * h])
 
 
 def _drift(s: Signals, tau_frac: float) -> Array:

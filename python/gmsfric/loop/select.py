@@ -717,8 +717,8 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 null = nulls[eff.name]
                 h = heldout(split, null, m, st.chunk)
                 # the whole must also beat the current model (the others chosen again without
-                # the effect may have landed somewhere worse)
-                h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects else h
+                # the effect, or its null part, may predict the held-out run worse than it)
+                h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects or eff.null is not None else h
                 far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
                 h_far = heldout(split, null, m, st.chunk, far) if far_level is not None and far.sum() >= 2 * st.chunk else None
                 dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
@@ -744,7 +744,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 if h_cur is not h:
                     ev["t_heldout_against_current_model"] = round(h_cur.t, 2)
                     if h_cur.p > level or h_cur.gain < cfg.min_gain:
-                        reasons.append(f"with the others' parameters chosen again, no better than the current model (held-out gain "
+                        reasons.append(f"the model with it is no better than the current model on held-out data (gain "
                                        f"{100 * h_cur.gain:.2f} %, t = {h_cur.t:.2f}, p = {h_cur.p:.2g})")
                 if far_level is not None and h_far is None:
                     reasons.append("too few held-out rows clear of reversals and stops to confirm it")
