@@ -2,7 +2,7 @@
 
 A case's *false* effects are those ``gmsfric loop`` accepted (``final.effects``) that were not
 planted and are not native (:func:`native`: the real EMPS axis' own effects, and the detectable
-pre-sliding of a clean rig's own contact): ``offset`` and ``input_delay`` included.  The loop's
+pre-sliding of a rig's own contact): ``offset`` and ``input_delay`` included.  The loop's
 half-sample ``alignment`` (reported outside ``final.effects``) is not counted as an effect; its
 rate is shown for information.  Runs that exit non-zero are failures: listed with their last
 error line, excluded from the rates over completed runs and counted as misses in the
@@ -23,8 +23,9 @@ TARGETS = {"recall": 0.90, "false": 0.02, "clean": 0.98, "pairs": 0.80}
 
 def native(r: dict[str, Any]) -> list[str]:
     """Effects the case has without planting: the real EMPS axis' own (``r["native"]``), and the
-    pre-sliding of a clean rig's Maxwell-slip, GMS or LuGre contact when the truth's column of the
-    contact itself meets the detectability rule (``truth.info.latent_presliding``)."""
+    pre-sliding of a rig's Maxwell-slip, GMS or LuGre contact when the truth's column of the
+    contact itself, added to the planted effects, meets the detectability rule
+    (``truth.info.latent_presliding``)."""
     out = list(r["native"])
     if r.get("truth", {}).get("info", {}).get("latent_presliding", 0.0) >= DETECTABLE:
         out.append("presliding_hysteresis")
