@@ -693,7 +693,6 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
     """Stage 3: rounds of forward selection (corrected held-out test, competition on the same
     held-out rows), joint refit and backward elimination."""
     split = st.split
-    n_est = int(split.est_fit.sum())
     rnd = 0
     with Progress("gmsfric loop", enabled=cfg.progress) as prog:
         while len(st.model.effects) < cfg.max_effects:
@@ -729,61 +728,19 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             far = settled_rows(split.val) & (np.abs(split.val.rows["qd"]) >= dip_resolution(split.est)) & split.val_test.astype(bool)
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
-                _fit(m, split)
-                e_est, e_val = split.errors(m)
-                null = nulls[eff.name]
-                h = heldout(split, null, m, st.chunk)
-                # the whole must also beat the current model (the others chosen again without
-                # the effect, or its null part, may predict the held-out run worse than it)
-                h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects or eff.null is not None else h
-                far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
-                h_far = heldout(split, null, m, st.chunk, far) if far_level is not None and far.sum() >= 2 * st.chunk else None
-                dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
-                change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
-                ev: dict[str, Any] = {}
-                f = fnd.get(eff.evidence)
-                if f is not None:
-                    ev["residual_test"] = f.as_dict()
-                ev.update(cv_gain=round(gain_cv, 5), validation_gain=round(h.gain, 5),
-                          moving_rows_error_pct={"estimation": round(split.errors_moving(m)[0], 4), "validation": round(h.error_after, 4)},
-                          t_heldout=round(h.t, 2), p_heldout=float(f"{h.p:.3g}"),
-                          level=float(f"{level:.3g}"), delta_bic=round(float(dbic), 1), baseline_parameters=change)
-                if eff.null is not None:
-                    ev["tested_against"] = f"the current model plus {', '.join(eff.null(next(t for t in m.terms if t.name == eff.name)).param_names)} alone"
-                reasons = []
-                if gain_cv <= 0:
-                    reasons.append("no cross-validated gain on estimation data")
-                if h.gain < cfg.min_gain:
-                    reasons.append(f"held-out error gain {100 * h.gain:.2f} % < {100 * cfg.min_gain:.2f} %")
-                if h.p > level or h.t < cfg.t_threshold:
-                    reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {level:.2g})" if h.p > level
-                                   else f"held-out t = {h.t:.2f} < {cfg.t_threshold}")
-                if h_cur is not h:
-                    ev["t_heldout_against_current_model"] = round(h_cur.t, 2)
-                    if h_cur.p > level or h_cur.gain < cfg.min_gain:
-                        reasons.append(f"the model with it is no better than the current model on held-out data (gain "
-                                       f"{100 * h_cur.gain:.2f} %, t = {h_cur.t:.2f}, p = {h_cur.p:.2g})")
-                if far_level is not None and h_far is None:
-                    reasons.append("too few held-out rows clear of reversals and stops to confirm it")
-                if h_far is not None and far_level is not None:
-                    ev["t_heldout_away_from_reversals"] = round(h_far.t, 2)
-                    if h_far.p > far_level or (eff.whole_motion and h_far.t < cfg.t_threshold):
-                        reasons.append(f"not confirmed away from reversals (t = {h_far.t:.2f}, p = {h_far.p:.2g} > {far_level:.2g}): "
-                                       + ("it acts on the whole motion, and a gain only where the axis reverses or sticks is the switch of friction"
-                                          if eff.whole_motion else "a dip only where the axis reverses or sticks is the switch of friction seen through the filters"))
-                if dbic >= 0:
-                    reasons.append(f"BIC does not decrease ({dbic:+.1f})")
-                if implausible is not None:
-                    reasons.append(implausible)
-                step = Step(rnd, eff.name, False, "; ".join(reasons), ev, e_est, e_val, m.params(), m)
+                step, h, _ = _test_candidate(st, cfg, rnd, eff, m, nulls[eff.name], gain_cv, level, far, fnd)
                 st.steps.append(step)
-                if not reasons:
+                if not step.reason:
                     passing.append((h.gain, step, m))
             if not passing:
-                if len(st.model.effects) + 2 > cfg.max_effects or not _pair_step(st, cfg, rnd, cands, far, fnd, prog):
-                    break
-                rnd += 1  # the pair spent the next round's share of the level
-                continue
+                if len(st.model.effects) + 2 <= cfg.max_effects and _pair_step(st, cfg, rnd, cands, far, fnd, prog):
+                    rnd += 1  # the pair spent the next round's share of the level
+                    continue
+                # the pairs spent (or could have spent) round rnd + 1's share: exchanges take the next
+                if _exchange_step(st, cfg, rnd + 2, names, far, fnd, prog):
+                    rnd += 2
+                    continue
+                break
             passing.sort(key=lambda c: -c[0])
             _, step, m = passing[0]
             step.accepted = True
@@ -797,6 +754,123 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             _joint_refit(st, cfg, rnd)
             _backward(st, cfg, rnd, step.effect)
             step.parameters = st.model.params() if step.effect in st.model.effects else step.parameters
+
+
+def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
+                    level: float, far: Array, fnd: dict[str, Finding]) -> tuple[Step, HeldOut, HeldOut]:
+    """The tests of a candidate model ``m`` whose effect ``eff`` is tested against ``null``
+    (fitted): its step (rejected; ``reason`` empty when every test passes), the held-out test
+    against the null and the one against the current model."""
+    split = st.split
+    n_est = int(split.est_fit.sum())
+    _fit(m, split)
+    e_est, e_val = split.errors(m)
+    h = heldout(split, null, m, st.chunk)
+    # the whole must also beat the current model (the others chosen again without
+    # the effect, or its null part, may predict the held-out run worse than it)
+    h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects or eff.null is not None else h
+    far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
+    h_far = heldout(split, null, m, st.chunk, far) if far_level is not None and far.sum() >= 2 * st.chunk else None
+    dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
+    change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
+    ev: dict[str, Any] = {}
+    f = fnd.get(eff.evidence)
+    if f is not None:
+        ev["residual_test"] = f.as_dict()
+    ev.update(cv_gain=round(gain_cv, 5), validation_gain=round(h.gain, 5),
+              moving_rows_error_pct={"estimation": round(split.errors_moving(m)[0], 4), "validation": round(h.error_after, 4)},
+              t_heldout=round(h.t, 2), p_heldout=float(f"{h.p:.3g}"),
+              level=float(f"{level:.3g}"), delta_bic=round(float(dbic), 1), baseline_parameters=change)
+    if eff.null is not None:
+        ev["tested_against"] = f"the current model plus {', '.join(eff.null(next(t for t in m.terms if t.name == eff.name)).param_names)} alone"
+    reasons = []
+    if gain_cv <= 0:
+        reasons.append("no cross-validated gain on estimation data")
+    if h.gain < cfg.min_gain:
+        reasons.append(f"held-out error gain {100 * h.gain:.2f} % < {100 * cfg.min_gain:.2f} %")
+    if h.p > level or h.t < cfg.t_threshold:
+        reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {level:.2g})" if h.p > level
+                       else f"held-out t = {h.t:.2f} < {cfg.t_threshold}")
+    if h_cur is not h:
+        ev["t_heldout_against_current_model"] = round(h_cur.t, 2)
+        if h_cur.p > level or h_cur.gain < cfg.min_gain:
+            reasons.append(f"the model with it is no better than the current model on held-out data (gain "
+                           f"{100 * h_cur.gain:.2f} %, t = {h_cur.t:.2f}, p = {h_cur.p:.2g})")
+    if far_level is not None and h_far is None:
+        reasons.append("too few held-out rows clear of reversals and stops to confirm it")
+    if h_far is not None and far_level is not None:
+        ev["t_heldout_away_from_reversals"] = round(h_far.t, 2)
+        if h_far.p > far_level or (eff.whole_motion and h_far.t < cfg.t_threshold):
+            reasons.append(f"not confirmed away from reversals (t = {h_far.t:.2f}, p = {h_far.p:.2g} > {far_level:.2g}): "
+                           + ("it acts on the whole motion, and a gain only where the axis reverses or sticks is the switch of friction"
+                              if eff.whole_motion else "a dip only where the axis reverses or sticks is the switch of friction seen through the filters"))
+    if dbic >= 0:
+        reasons.append(f"BIC does not decrease ({dbic:+.1f})")
+    if implausible is not None:
+        reasons.append(implausible)
+    return Step(rnd, eff.name, False, "; ".join(reasons), ev, e_est, e_val, m.params(), m), h, h_cur
+
+
+def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], far: Array, fnd: dict[str, Finding],
+                   prog: Progress) -> bool:
+    """When nothing more enters, every accepted effect is tried replaced by every catalogue effect
+    not in the model.  An effect can enter first as the nearest stand-in for another that the run
+    correlates with it (a position-dependent force for a friction asymmetry, where the speed
+    follows the position), and then keep the other out: given the stand-in, the other gains
+    little.  The replacement is fitted on the model without the accepted effect, every grid
+    parameter chosen again, and tested as an entering effect is (against the same model without
+    it, at ``level(rnd, X)`` for the ``X`` exchanges tried); the model after the exchange must
+    also beat the current one on held-out data and in cross-validated error.  The exchange that
+    gains most on the current model is made, then joint refit and backward elimination.  Returns
+    whether one was made."""
+    split, dt = st.split, st.split.est.dt
+    cv_cur = _cv(st.model, split, cfg)
+    trials: list[tuple[str, Effect, LinearModel, LinearModel, float]] = []
+    for out in list(st.model.effects):
+        base = _fit(_without(st.model, out, dt), split)
+        r_est = np.where(split.est_fit, split.est.y - base.predict(split.est), np.nan)
+        for name in names:
+            eff = CATALOGUE[name]
+            if name == out or name in st.model.effects or not eff.applicable(base):
+                continue
+            prog.update(note=f"round {rnd}: {name} for {out}")
+            m, _, _ = _best_variant(eff, base, st, cfg, r_est)
+            if m is None:
+                continue
+            m = _fit(_rechoose(m, list(m.effects), st, cfg), split)
+            null = _tested_against(m, name, st)
+            if base.effects:
+                null = _rechoose(null, list(base.effects), st, cfg)
+            null = _fit(null, split)
+            trials.append((out, eff, m, null, 1.0 - _cv(m, split, cfg) / _cv(null, split, cfg)))
+    level = cfg.level(rnd, len(trials))
+    best: tuple[float, Step, LinearModel, str] | None = None
+    for out, eff, m, null, gain_cv in trials:
+        step, _, h_cur = _test_candidate(st, cfg, rnd, eff, m, null, gain_cv, level, far, fnd)
+        step.evidence["replaces"] = out
+        if not _cv(m, split, cfg) < cv_cur:
+            step.reason = "; ".join(filter(None, [step.reason, f"no lower cross-validated error than the model with {out}"]))
+        step.reason = step.reason and f"in place of {out}: {step.reason}"
+        st.steps.append(step)
+        if not step.reason and (best is None or h_cur.gain > best[0]):
+            best = (h_cur.gain, step, m, out)
+    if best is None:
+        return False
+    gain, step, m, out = best
+    step.accepted = True
+    step.reason = (f"replaces {out}: held-out error {100 * gain:.2f} % lower than with {out} (t = {step.evidence['t_heldout_against_current_model']:.1f}); "
+                   f"given the others t = {step.evidence['t_heldout']:.1f}, p = {step.evidence['p_heldout']:.2g} <= {level:.2g}, BIC {step.evidence['delta_bic']:+.1f}")
+    for s in st.steps:
+        if s.accepted and s.effect == out:
+            s.accepted = False
+            s.evidence["replaced_in_round"] = rnd
+            s.reason += f"; replaced in round {rnd} by {step.effect}"
+    st.model = m
+    st.err = split.errors(m)
+    _joint_refit(st, cfg, rnd)
+    _backward(st, cfg, rnd, step.effect)
+    step.parameters = st.model.params() if step.effect in st.model.effects else step.parameters
+    return True
 
 
 def _tested_against(m: LinearModel, effect: str, st: _State) -> LinearModel:
