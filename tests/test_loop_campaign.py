@@ -84,9 +84,12 @@ def test_a_clean_rigs_own_detectable_presliding_is_not_scored_false():
 
 def _campaign_runs(seed: int, case_id: str):
     from gmsfric.loop import AxisData
-    from loop_campaign.rigs import simulate_run
+    from loop_campaign.rigs import emps_dir, simulate_run
 
-    case = next(c for c in campaign_cases.make_cases(seed, emps=False) if c["id"] == case_id)
+    emps = case_id.startswith("emps-")
+    if emps and not (emps_dir() / "DATA_EMPS.mat").exists():
+        pytest.skip("EMPS data not found next to the repository")
+    case = next(c for c in campaign_cases.make_cases(seed, emps=emps) if c["id"] == case_id)
     return tuple(AxisData(r.t, r.q, r.f, source=which) for which, r in (("est", simulate_run(case, "est")), ("val", simulate_run(case, "val"))))
 
 
@@ -353,6 +356,27 @@ def test_the_joint_refit_runs_until_choosing_again_changes_nothing(monkeypatch):
     assert once.effects == res.effects
     assert len([n for n in once.final.params() if n.startswith("w_block")]) < len(blocks)
     assert cv < 0.8 * select._cv(once.final, once.split, cfg)
+
+
+def test_a_stand_in_that_entered_first_is_exchanged(monkeypatch):
+    """A friction that grows along the travel planted on a real EMPS run (the campaign's seed 39):
+    a position-dependent force enters first, standing in for the axis' own friction asymmetry,
+    and stays after the position friction enters (given the others it still gains 20 % on
+    held-out data), keeping the asymmetry out.  Tried in its place, the asymmetry lowers the
+    held-out error further and replaces it; without the exchange step the force stays."""
+    from gmsfric.loop import LoopConfig, run_loop, select
+
+    runs = _campaign_runs(39, "emps-307-position_dependent_friction")
+    cfg = LoopConfig(progress=False)
+    res = run_loop(*runs, cfg)
+    assert "position_dependent_force" not in res.effects
+    assert {"asymmetric_friction", "position_dependent_friction"} <= set(res.effects)
+    made = [s for s in res.steps if s.accepted and s.evidence.get("replaces") == "position_dependent_force"]
+    assert [s.effect for s in made] == ["asymmetric_friction"]
+    replaced = next(s for s in res.steps if s.effect == "position_dependent_force" and "replaced_in_round" in s.evidence)
+    assert not replaced.accepted
+    monkeypatch.setattr(select, "_exchange_step", lambda *args: False)
+    assert "position_dependent_force" in run_loop(*runs, cfg).effects
 
 
 def test_a_heating_memory_as_long_as_the_run_is_a_drift(monkeypatch):

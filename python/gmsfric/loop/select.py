@@ -44,7 +44,10 @@ The loop runs in named stages (:func:`run_loop`):
    When no single effect passes, two confounded effects may enter together, their grid
    parameters chosen again together: each must pass the held-out test given the other (level of
    the next round, split over the pairs tried), so a real effect cannot carry a false one in
-   (:func:`_pair_step`).
+   (:func:`_pair_step`).  When no pair passes either, each accepted effect is tried replaced by
+   each catalogue effect not in the model, tested as an entering effect is in its place and
+   required to beat the current model (:func:`_exchange_step`): a stand-in that entered first
+   cannot keep out the effect it stands in for.
 4. **report** -- residual analysis of the final model; significant structure left is listed as
    unexplained, with the variable it depends on.
 """
@@ -1021,7 +1024,9 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
                 "on the held-out rows clear of reversals and stops); the best held-out gain enters; "
                 "then joint refit of every accepted effect's grid parameters and backward elimination (stay with p <= alpha); "
                 "when no single effect passes, a pair of effects enters when each passes given the other (p <= alpha / (2**(round + 1) x pairs "
-                "tried), held-out gain >= min_gain) and the pair passes the BIC and plausibility tests",
+                "tried), held-out gain >= min_gain) and the pair passes the BIC and plausibility tests; when no pair passes either, an accepted "
+                "effect is replaced by another catalogue effect that passes the same tests in its place (p <= alpha / (2**(round + 2) x "
+                "exchanges tried)) and beats the current model on held-out data and in cross-validated error",
         "alpha": cfg.alpha, "t_threshold": cfg.t_threshold, "min_gain": cfg.min_gain, "max_parameter_ratio": cfg.max_parameter_ratio,
         "chunk_rows": st.chunk,
     }
