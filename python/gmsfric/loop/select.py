@@ -710,17 +710,8 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 prog.update(note=f"round {rnd}: {eff.name}")
                 m, cv, why = _best_variant(eff, st.model, st, cfg, r_est, prog)
                 if m is not None:
-                    null = _tested_against(m, eff.name, st)
-                    if st.model.effects:
-                        # the accepted effects' grid parameters were chosen without this one, which
-                        # may have pulled them (a resonance's frequency absorbing a drift): choose
-                        # them again with it, then its own given theirs; and choose them again
-                        # without it from there, so that it is credited only with what it enables
-                        m = _rechoose(m, list(st.model.effects) + [eff.name], st, cfg)
-                        cv = _cv(m, split, cfg)
-                        null = _rechoose(_tested_against(m, eff.name, st), list(st.model.effects), st, cfg)
-                    nulls[eff.name] = _fit(null, split)
-                    cands.append((1.0 - cv / _cv(null, split, cfg), eff, m))
+                    m, nulls[eff.name], gain_cv = _candidate(m, eff.name, list(st.model.effects), cv, st, cfg)
+                    cands.append((gain_cv, eff, m))
                 elif why is not None:
                     f = fnd.get(eff.evidence)
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
@@ -757,6 +748,21 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             _joint_refit(st, cfg, rnd)
             _backward(st, cfg, rnd, step.effect)
             step.parameters = st.model.params() if step.effect in st.model.effects else step.parameters
+
+
+def _candidate(m: LinearModel, effect: str, others: list[str], cv: float, st: _State, cfg: LoopConfig) -> tuple[LinearModel, LinearModel, float]:
+    """A candidate variant ``m`` (CV SSE ``cv``) of ``effect`` on top of the accepted ``others``:
+    the candidate model, what it is tested against (fitted) and its cross-validated gain.  The
+    others' grid parameters were chosen without the effect, which may have pulled them (a
+    resonance's frequency absorbing a drift): they are chosen again with it, then its own given
+    theirs; and again without it from there, so that it is credited only with what it enables."""
+    null = _tested_against(m, effect, st)
+    if others:
+        m = _rechoose(m, others + [effect], st, cfg)
+        cv = _cv(m, st.split, cfg)
+        null = _rechoose(_tested_against(m, effect, st), others, st, cfg)
+    null = _fit(null, st.split)
+    return m, null, 1.0 - cv / _cv(null, st.split, cfg)
 
 
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
@@ -837,15 +843,11 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
             if name == out or name in st.model.effects or not eff.applicable(base):
                 continue
             prog.update(note=f"round {rnd}: {name} for {out}")
-            m, _, _ = _best_variant(eff, base, st, cfg, r_est)
+            m, cv, _ = _best_variant(eff, base, st, cfg, r_est)
             if m is None:
                 continue
-            m = _fit(_rechoose(m, list(m.effects), st, cfg), split)
-            null = _tested_against(m, name, st)
-            if base.effects:
-                null = _rechoose(null, list(base.effects), st, cfg)
-            null = _fit(null, split)
-            trials.append((out, eff, m, null, 1.0 - _cv(m, split, cfg) / _cv(null, split, cfg)))
+            m, null, gain_cv = _candidate(m, name, list(base.effects), cv, st, cfg)
+            trials.append((out, eff, m, null, gain_cv))
     level = cfg.level(rnd, len(trials))
     best: tuple[float, Step, LinearModel, str] | None = None
     for out, eff, m, null, gain_cv in trials:
