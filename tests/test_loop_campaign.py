@@ -425,3 +425,30 @@ def test_a_hump_the_viscous_slope_outweighs_needs_to_beat_the_drag_probes(monkey
     assert run_loop(*drag, cfg).effects == []
     monkeypatch.setattr(select, "CONTESTED_MARGIN", 0.0)
     assert run_loop(*hump, cfg).effects == []
+
+
+def test_a_slow_log_gets_a_filter_cut_off_chosen_on_its_estimation_rows():
+    """A clean jittered robot log at 100 Hz (campaign seed 45, Karnopp contact, no delay): with
+    the recipe's fs / 10 = 10 Hz the filtered position lags the unfiltered torque through the stick
+    at reversals, and a 14 ms input delay fits that lag.  Each cut-off of 10, 20 and 30 Hz is tried
+    and the one whose baseline cross-validates best on the estimation rows is kept: nothing is
+    named.  At 1 kHz and above only the recipe's cut-off is tried, and a given one is kept."""
+    from gmsfric.loop import AxisData, LoopConfig, Preprocessing, run_loop
+    from gmsfric.loop.select import make_split
+
+    runs = _campaign_runs(45, "robot-277-clean")
+    res = run_loop(*runs, LoopConfig(progress=False))
+    pre = res.to_dict()["preprocessing"]
+    assert pre["chosen_by"].startswith("cross-validated") and set(pre["cv_sse"]) == {"10", "20", "30"}
+    assert pre["cutoff_hz"] > 10.0 and pre["cv_sse"]["10"] > pre["cv_sse"][f"{pre['cutoff_hz']:g}"]
+    assert res.effects == []
+    recipe = LoopConfig(progress=False, preprocessing=Preprocessing(cutoff_hz=10.0))
+    fixed = run_loop(*runs, recipe)
+    assert fixed.to_dict()["preprocessing"] == {"cutoff_hz": 10.0, "chosen_by": "given"}
+    assert fixed.effects == ["input_delay"]
+
+    t = np.arange(0.0, 4.0, 1e-3)
+    q = 0.01 * np.sin(2 * np.pi * 0.5 * t)
+    fast = AxisData(t, q, 2.0 * np.gradient(np.gradient(q, t), t) + 3.0 * np.sign(np.cos(2 * np.pi * 0.5 * t)), source="est")
+    split = make_split(fast, None, LoopConfig(progress=False))
+    assert split.preprocessing["cutoff_hz"] == 100.0 and split.preprocessing["chosen_by"].startswith("the recipe")

@@ -168,6 +168,7 @@ class LoopResult(Result):
                 "validation_error_pct": round(self.baseline_errors[1], 4),
                 "parameters": _round_params(self.baseline.params(), rot),
             },
+            "preprocessing": self.split.preprocessing,
             "alignment": self.alignment,
             "steps": [s.as_dict(rot) for s in self.steps],
             "final": {
