@@ -442,6 +442,7 @@ def test_a_slow_log_gets_a_filter_cut_off_chosen_on_its_estimation_rows():
     assert pre["chosen_by"].startswith("cross-validated") and set(pre["cv_sse"]) == {"10", "20", "30"}
     assert pre["cutoff_hz"] > 10.0 and pre["cv_sse"]["10"] > pre["cv_sse"][f"{pre['cutoff_hz']:g}"]
     assert res.effects == []
+    assert f"position filter: {pre['cutoff_hz']:.4g} Hz (cross-validated" in res.table()
     recipe = LoopConfig(progress=False, preprocessing=Preprocessing(cutoff_hz=10.0))
     fixed = run_loop(*runs, recipe)
     assert fixed.to_dict()["preprocessing"] == {"cutoff_hz": 10.0, "chosen_by": "given"}

@@ -219,7 +219,11 @@ def format_table(result: "LoopResult") -> str:
     """Before/after table: baseline, every tested effect, final model, unexplained structure."""
     d = result._body()
     rot = result.rotary
-    lines = [f"estimation: {d['estimation']}    validation: {d['validation']}", ""]
+    lines = [f"estimation: {d['estimation']}    validation: {d['validation']}"]
+    pre = d.get("preprocessing") or {}
+    if pre:
+        lines.append(f"position filter: {pre['cutoff_hz']:.4g} Hz ({pre['chosen_by']})")
+    lines.append("")
     lines.append(f"{'step':<36}{'est %':>8}{'val %':>8}  decision")
     b = d["baseline"]
     lines.append(f"baseline: {b['model']}")
