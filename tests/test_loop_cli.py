@@ -40,6 +40,20 @@ def test_cli_json_contract_and_figures(rig_csv, tmp_path, capsys):
     assert d["kind"] == "loop" and d["provenance"]["columns"]["position"] == "x_mm" and d["provenance"]["units"]["time"] == "ms"
     assert d["provenance"]["input_files"][0]["path"] == str(path) and len(d["provenance"]["input_files"][0]["sha256"]) == 64
     assert "before -> after" in capsys.readouterr().out
+    assert d["preprocessing"] == {"cutoff_hz": 100.0, "chosen_by": "the recipe, min(100 Hz, fs / 10)"}  # a 1 kHz log
+
+
+def test_cli_cutoff_is_given_to_the_filter(rig_csv, tmp_path, capsys):
+    path, gain = rig_csv
+    out = tmp_path / "r.json"
+    base = ["loop", str(path), "--time", "t_ms", "--time-unit", "ms", "--position", "x_mm", "--position-unit", "mm",
+            "--command", "u", "--gain", str(gain), "--quiet"]
+    assert main([*base, "--cutoff-hz", "40", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["preprocessing"] == {"cutoff_hz": 40.0, "chosen_by": "given"}
+    capsys.readouterr()
+    assert main([*base, "--cutoff-hz", "-5"]) == 2
+    err = capsys.readouterr().err
+    assert "--cutoff-hz" in err and "must be > 0" in err and "Traceback" not in err
 
 
 @pytest.mark.parametrize(
