@@ -93,6 +93,14 @@ def _campaign_runs(seed: int, case_id: str):
     return tuple(AxisData(r.t, r.q, r.f, source=which) for which, r in (("est", simulate_run(case, "est")), ("val", simulate_run(case, "val"))))
 
 
+def _recipe_filter(runs):
+    """The recipe's position filter, ``min(100 Hz, fs/10)``, for runs logged below 1 kHz: the
+    cut-off under which some of these guards were found (the loop now chooses one from the run)."""
+    from gmsfric.loop import Preprocessing
+
+    return Preprocessing(cutoff_hz=min(100.0, 0.1 / runs[0].dt))
+
+
 def test_presliding_must_explain_more_than_a_switch_at_the_reversal(monkeypatch):
     """A LuGre contact at 250 Hz (bristles far below the resolution) switches its friction where the position
     reverses, which a block at the smallest break displacement fits better than sign(qd) of the
@@ -146,14 +154,17 @@ def test_presliding_blocks_that_cancel_each_other_are_refused(monkeypatch):
     with held-out t 3.8 against the switch.  A negative break force is refused as fitted, and no
     set of positive blocks gains: nothing is named.  With the two-standard-error rule the
     cancelling blocks pass the test against the switch, and only the second guard refuses them:
-    the whole term predicts the held-out run no better than the model without it."""
+    the whole term predicts the held-out run no better than the model without it.  All of this
+    with the recipe's 50 Hz position filter, under which the blocks were found: the cut-off the
+    loop now chooses on this run (100 Hz) leaves them little to fit."""
     import dataclasses
 
     from gmsfric.loop import LoopConfig, run_loop
     from gmsfric.loop.effects import CATALOGUE
 
-    only = LoopConfig(progress=False, effects=("presliding_hysteresis",))
     runs = _campaign_runs(31, "clean-248-clean")
+    assert run_loop(*runs, LoopConfig(progress=False, effects=("presliding_hysteresis",))).effects == []
+    only = LoopConfig(progress=False, effects=("presliding_hysteresis",), preprocessing=_recipe_filter(runs))
     assert run_loop(*runs, only).effects == []
 
     def within_two_errors(p, s):
@@ -173,14 +184,18 @@ def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     """A rig with no resonance whose residual a heavily damped "load on a spring" fits (a lag,
     no peak): when an overdamped probe cross-validates best, compliance is refused (a case of the
     campaign's seed 21, with the planted asymmetry found); without the probe and the damping band,
-    and judged on the fast held-out rows alone, it is named."""
+    and judged on the fast held-out rows alone, it is named.  The lag is the recipe's position
+    filter against the force (the rig is logged at 500 Hz): with the cut-off the loop chooses on
+    the run nothing is fitted to it, so the guards are shown under the recipe's."""
     import dataclasses
 
     from gmsfric.loop import LoopConfig, run_loop
     from gmsfric.loop.effects import CATALOGUE
 
     runs = _campaign_runs(21, "single-018-asymmetric_friction")
-    cfg = LoopConfig(progress=False, effects=("asymmetric_friction", "compliance"))
+    chosen = run_loop(*runs, LoopConfig(progress=False, effects=("asymmetric_friction", "compliance")))
+    assert chosen.effects == ["asymmetric_friction"]
+    cfg = LoopConfig(progress=False, effects=("asymmetric_friction", "compliance"), preprocessing=_recipe_filter(runs))
     res = run_loop(*runs, cfg)
     assert res.effects == ["asymmetric_friction"]
     refused = [s for s in res.steps if s.effect == "compliance" and "no resonant peak" in s.reason]
@@ -228,14 +243,16 @@ def test_a_stribeck_dip_only_at_reversals_is_refused(monkeypatch):
     """A clean GMS contact (elastic range far below the encoder step; the campaign's seed 33) whose
     force, against the filtered velocity, looks lower at low speed: a Stribeck *dip* that gains
     only through reversals and is contradicted on the rows clear of them, so it is refused there;
-    without that check it is named."""
+    without that check it is named.  Under the recipe's position filter: the cut-off the loop
+    chooses on this run leaves no dip to fit."""
     import dataclasses
 
     from gmsfric.loop import LoopConfig, run_loop
     from gmsfric.loop.effects import CATALOGUE
 
     runs = _campaign_runs(33, "clean-233-clean")
-    cfg = LoopConfig(progress=False, effects=("stribeck",))
+    assert run_loop(*runs, LoopConfig(progress=False, effects=("stribeck",))).effects == []
+    cfg = LoopConfig(progress=False, effects=("stribeck",), preprocessing=_recipe_filter(runs))
     res = run_loop(*runs, cfg)
     assert res.effects == []
     refused = [s for s in res.steps if s.effect == "stribeck" and "not confirmed away from reversals" in s.reason]
