@@ -8,7 +8,8 @@ others' true columns (its marginal contribution).  A planted input delay is the 
 regressors advanced by the true delay rather than an extra column.
 
 Preprocessing reuses the loop's public API (:class:`gmsfric.loop.Signals`, the EMPS recipe:
-filtering, differences, edges, decimation); the least squares and the error are computed here.
+filtering, differences, edges, decimation; below 1 kHz the cut-off under which the true model
+fits the estimation run best, :func:`true_filter`); the least squares and the error are computed here.
 A second, informative figure leaves standstill rows out (``gain_moving``,
 ``detectable_moving``): at rest a stuck axis carries any holding force up to the break-away level,
 which ``sign(qd)`` (of a filtered, ringing velocity) cannot represent and which can hide or fake an
@@ -33,6 +34,7 @@ from scipy import signal
 
 import gmsfric as g
 from gmsfric.loop import Preprocessing, Signals
+from gmsfric.loop.select import CUTOFF_FRACTIONS, RECIPE_CUTOFF_HZ
 from gmsfric.loop.data import AxisData
 
 from .rigs import Run, compliance_filter, drift_shape, position_shape, stribeck_shape
@@ -156,9 +158,33 @@ def errors(se: Signals, sv: Signals, effects: list[dict[str, Any]], shift: float
     return err(Xe, ye), err(Xv, yv)
 
 
+def true_filter(case: dict[str, Any], est: Run, val: Run) -> Preprocessing:
+    """The position filter the truth measures with.  At 1 kHz and above the recipe's; below, where
+    the loop chooses its cut-off on the estimation run, the one of the same cut-offs under which
+    the true model (planted and native columns, true delay) fits the estimation run best (the
+    recipe's ``fs/10`` lags the force on slow logs and would inflate every error)."""
+    fs = 1.0 / float(np.median(np.diff(uniform(est)[0])))
+    cutoffs = [min(RECIPE_CUTOFF_HZ, fs / 10.0)]
+    for c in sorted(min(RECIPE_CUTOFF_HZ, f * fs) for f in CUTOFF_FRACTIONS):
+        if c > 1.05 * cutoffs[-1]:
+            cutoffs.append(c)
+    if len(cutoffs) == 1:
+        return Preprocessing()
+    effects = case.get("native", []) + case["effects"]
+    delay = est.hold + next((e["tau"] for e in effects if e["name"] == "input_delay"), 0.0)
+    off = case.get("baseline", "reference") == "reference"
+
+    def est_error(c: float) -> float:
+        se, sv = signals(est, val, Preprocessing(cutoff_hz=c))
+        return errors(se, sv, effects, delay, off, moving=True)[0]
+
+    return Preprocessing(cutoff_hz=min(cutoffs, key=est_error))
+
+
 def ground_truth(case: dict[str, Any], est: Run, val: Run) -> dict[str, Any]:
     """Per planted effect: marginal and alone held-out gains, detectability; plus context."""
-    se, sv = signals(est, val)
+    pre = true_filter(case, est, val)
+    se, sv = signals(est, val, pre)
     off = case.get("baseline", "reference") == "reference"
     hold = est.hold
     native = case.get("native", [])
@@ -172,7 +198,7 @@ def ground_truth(case: dict[str, Any], est: Run, val: Run) -> dict[str, Any]:
     full, full_m = err(planted), err(planted, True)
     out: dict[str, Any] = {
         "baseline_err": base, "true_model_err": full, "baseline_err_moving": base_m, "true_model_err_moving": full_m,
-        "effects": {}, "fs": se.fs, "rows": se.n_rows, "jitter_ratio": uniform(est)[3],
+        "effects": {}, "fs": se.fs, "rows": se.n_rows, "jitter_ratio": uniform(est)[3], "cutoff_hz": se.cutoff,
     }
     def beyond_null(e: dict[str, Any], rest: list[dict[str, Any]], full_val: float) -> float:
         """Marginal held-out gain (moving rows) of ``e`` against the loop's null for it."""
