@@ -212,3 +212,18 @@ def test_bad_preprocessing_is_refused_by_name_before_any_work(kwargs, message):
     t = np.arange(0.0, 10.0, 1e-3)
     with pytest.raises(InvalidInputError, match=message):
         Signals(AxisData(t, 0.05 * np.sin(t), np.cos(t), source="run"), Preprocessing(**kwargs))
+
+
+@pytest.mark.parametrize("fs, want", [
+    (100.0, [10.0, 20.0, 30.0]),
+    (250.0, [25.0, 50.0, 75.0]),
+    (500.0, [50.0, 100.0]),
+    (999.9, [99.99]),  # a 1 kHz log whose clock runs a little fast: the recipe alone
+    (1000.0, [100.0]),
+    (5000.0, [100.0]),
+])
+def test_cut_offs_to_choose_from_widen_only_below_1_khz(fs, want):
+    from gmsfric.loop import Preprocessing
+
+    assert Preprocessing().cutoffs(fs) == pytest.approx(want)
+    assert Preprocessing(cutoff_hz=30.0).cutoffs(fs) == [30.0]  # a given cut-off is kept

@@ -34,7 +34,6 @@ from scipy import signal
 
 import gmsfric as g
 from gmsfric.loop import Preprocessing, Signals
-from gmsfric.loop.select import CUTOFF_FRACTIONS, RECIPE_CUTOFF_HZ
 from gmsfric.loop.data import AxisData
 
 from .rigs import Run, compliance_filter, drift_shape, position_shape, stribeck_shape
@@ -163,11 +162,7 @@ def true_filter(case: dict[str, Any], est: Run, val: Run) -> Preprocessing:
     the loop chooses its cut-off on the estimation run, the one of the same cut-offs under which
     the true model (planted and native columns, true delay) fits the estimation run best (the
     recipe's ``fs/10`` lags the force on slow logs and would inflate every error)."""
-    fs = 1.0 / float(np.median(np.diff(uniform(est)[0])))
-    cutoffs = [min(RECIPE_CUTOFF_HZ, fs / 10.0)]
-    for c in sorted(min(RECIPE_CUTOFF_HZ, f * fs) for f in CUTOFF_FRACTIONS):
-        if c > 1.05 * cutoffs[-1]:
-            cutoffs.append(c)
+    cutoffs = Preprocessing().cutoffs(1.0 / float(np.median(np.diff(uniform(est)[0]))))
     if len(cutoffs) == 1:
         return Preprocessing()
     effects = case.get("native", []) + case["effects"]

@@ -228,19 +228,6 @@ class Split:
         return e, v
 
 
-#: Position filter cut-offs tried when none is given, as fractions of the sample rate, none above
-#: the recipe's 100 Hz.  The recipe's ``fs / 10`` suits 1 kHz logs, whose columns and force are
-#: then band-limited alike by the decimation filter (40 Hz).  Logged slower there is little or no
-#: decimation, the force keeps its band up to Nyquist, and a position filtered at ``fs / 10`` lags
-#: it in the fast parts of the motion (the stick at reversals): on 100 Hz robot logs the true
-#: model's held-out error was 10.8 % at 10 Hz and 0.75 % at 20 Hz, and a 12 ms "delay" fitted the
-#: difference.
-CUTOFF_FRACTIONS = (0.1, 0.2, 0.3)
-
-#: The recipe's largest cut-off (Hz).
-RECIPE_CUTOFF_HZ = 100.0
-
-
 def _held_out_blocks(n: int, cfg: LoopConfig) -> tuple[Array, str]:
     """Without a validation run: the mask of the interleaved held-out blocks and their names."""
     nb = max(3, cfg.n_blocks)
@@ -253,10 +240,10 @@ def _held_out_blocks(n: int, cfg: LoopConfig) -> tuple[Array, str]:
 def _estimation_signals(est: AxisData, cfg: LoopConfig, held_out: bool) -> tuple[Signals, dict[str, Any]]:
     """The estimation run preprocessed, standstill marked with the configured rest fraction.
 
-    Without a given cut-off, each of :data:`CUTOFF_FRACTIONS` of the sample rate (at most
-    :data:`RECIPE_CUTOFF_HZ`) is tried and the one whose baseline has the smallest blocked
-    cross-validated error on the moving estimation rows (those moving under every cut-off, held-out
-    blocks left out) is kept: at 1 kHz and above only the recipe's 100 Hz is tried."""
+    Without a given cut-off, each of :meth:`Preprocessing.cutoffs` is tried and the one whose
+    baseline has the smallest blocked cross-validated error on the moving estimation rows (those
+    moving under every cut-off, held-out blocks left out) is kept: at 1 kHz and above only the
+    recipe's 100 Hz is tried."""
     def prepared(pre: Preprocessing) -> Signals:
         s = Signals(est, pre)
         rest = cfg.rest_fraction * s.v_scale
@@ -269,10 +256,7 @@ def _estimation_signals(est: AxisData, cfg: LoopConfig, held_out: bool) -> tuple
     first = prepared(pre)
     if pre.cutoff_hz is not None:
         return first, {"cutoff_hz": round(first.cutoff, 6), "chosen_by": "given"}
-    cutoffs = [first.cutoff]
-    for c in sorted(min(RECIPE_CUTOFF_HZ, f * first.fs) for f in CUTOFF_FRACTIONS):
-        if c > 1.05 * cutoffs[-1]:  # distinct cut-offs only (a 999.9 Hz clock is a 1 kHz log)
-            cutoffs.append(c)
+    cutoffs = pre.cutoffs(first.fs)
     if len(cutoffs) == 1:
         return first, {"cutoff_hz": round(first.cutoff, 6), "chosen_by": "the recipe, min(100 Hz, fs / 10)"}
     sigs = {first.cutoff: first} | {c: prepared(replace(pre, cutoff_hz=c)) for c in cutoffs[1:]}
