@@ -227,3 +227,14 @@ def test_cut_offs_to_choose_from_widen_only_below_1_khz(fs, want):
 
     assert Preprocessing().cutoffs(fs) == pytest.approx(want)
     assert Preprocessing(cutoff_hz=30.0).cutoffs(fs) == [30.0]  # a given cut-off is kept
+
+
+def test_too_few_moving_rows_keep_the_recipes_cut_off():
+    from gmsfric.loop import AxisData, LoopConfig
+    from gmsfric.loop.select import MIN_ROWS_TO_CHOOSE_CUTOFF, make_split
+
+    t = np.arange(0.0, 3.0, 0.01)  # 100 Hz, moving for 0.4 s only
+    q = np.where(t < 0.4, 0.01 * np.sin(np.pi * t / 0.4) ** 2, 0.0)
+    split = make_split(AxisData(t, q, np.cos(t), source="short"), None, LoopConfig(progress=False))
+    assert split.preprocessing["chosen_by"].startswith("the recipe (fewer than")
+    assert split.preprocessing["cutoff_hz"] == pytest.approx(10.0) and split.est_fit.sum() < MIN_ROWS_TO_CHOOSE_CUTOFF

@@ -49,7 +49,8 @@ class Preprocessing:
     Parameters
     ----------
     cutoff_hz : float, optional
-        Butterworth cut-off (Hz); default ``min(100, fs/10)``.
+        Butterworth cut-off (Hz); default ``min(100, fs/10)``, and below 1 kHz the loop chooses
+        among :meth:`cutoffs` on the estimation run.
     order : int
         Butterworth order (applied forward and backward).
     decimation : int, optional

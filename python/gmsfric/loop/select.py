@@ -228,6 +228,11 @@ class Split:
         return e, v
 
 
+#: Moving estimation rows needed to choose the position filter's cut-off (as many as the loop
+#: needs to run at all).
+MIN_ROWS_TO_CHOOSE_CUTOFF = 50
+
+
 def _held_out_blocks(n: int, cfg: LoopConfig) -> tuple[Array, str]:
     """Without a validation run: the mask of the interleaved held-out blocks and their names."""
     nb = max(3, cfg.n_blocks)
@@ -263,6 +268,8 @@ def _estimation_signals(est: AxisData, cfg: LoopConfig, held_out: bool) -> tuple
     rows = np.logical_and.reduce([s.moving for s in sigs.values()])
     if held_out:
         rows &= ~_held_out_blocks(first.n_rows, cfg)[0]
+    if rows.sum() < MIN_ROWS_TO_CHOOSE_CUTOFF:
+        return first, {"cutoff_hz": round(first.cutoff, 6), "chosen_by": f"the recipe (fewer than {MIN_ROWS_TO_CHOOSE_CUTOFF} moving rows to choose on)"}
     base = LinearModel([BASE_TERMS[b] for b in cfg.baseline])
     cv = {c: _cv_sse(base.X(s)[rows], s.y[rows], cfg.inner_folds) for c, s in sigs.items()}
     best = min(cv, key=lambda c: cv[c])
