@@ -50,6 +50,8 @@ def test_cli_cutoff_is_given_to_the_filter(rig_csv, tmp_path, capsys):
             "--command", "u", "--gain", str(gain), "--quiet"]
     assert main([*base, "--cutoff-hz", "40", "--json", str(out)]) == 0
     assert json.loads(out.read_text())["preprocessing"] == {"cutoff_hz": 40.0, "chosen_by": "given"}
+    assert main([*base, "--cutoff-hz", "1e9", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["preprocessing"] == {"cutoff_hz": 450.0, "chosen_by": "given (1e+09 Hz, limited to 0.45 x fs)"}
     capsys.readouterr()
     assert main([*base, "--cutoff-hz", "-5"]) == 2
     err = capsys.readouterr().err

@@ -260,7 +260,8 @@ def _estimation_signals(est: AxisData, cfg: LoopConfig, held_out: bool) -> tuple
     pre = cfg.preprocessing
     first = prepared(pre)
     if pre.cutoff_hz is not None:
-        return first, {"cutoff_hz": round(first.cutoff, 6), "chosen_by": "given"}
+        limited = first.cutoff < pre.cutoff_hz  # at most 0.45 fs, below Nyquist
+        return first, {"cutoff_hz": round(first.cutoff, 6), "chosen_by": f"given ({pre.cutoff_hz:g} Hz, limited to 0.45 x fs)" if limited else "given"}
     cutoffs = pre.cutoffs(first.fs)
     if len(cutoffs) == 1:
         return first, {"cutoff_hz": round(first.cutoff, 6), "chosen_by": "the recipe, min(100 Hz, fs / 10)"}
