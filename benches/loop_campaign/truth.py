@@ -9,7 +9,7 @@ regressors advanced by the true delay rather than an extra column.
 
 Preprocessing reuses the loop's public API (:class:`gmsfric.loop.Signals`, the EMPS recipe:
 filtering, differences, edges, decimation; below 1 kHz the cut-off under which the true model
-fits the estimation run best, :func:`true_filter`); the least squares and the error are computed here.
+fits the estimation run best, :func:`true_signals`); the least squares and the error are computed here.
 A second, informative figure leaves standstill rows out (``gain_moving``,
 ``detectable_moving``): at rest a stuck axis carries any holding force up to the break-away level,
 which ``sign(qd)`` (of a filtered, ringing velocity) cannot represent and which can hide or fake an
@@ -157,29 +157,25 @@ def errors(se: Signals, sv: Signals, effects: list[dict[str, Any]], shift: float
     return err(Xe, ye), err(Xv, yv)
 
 
-def true_filter(case: dict[str, Any], est: Run, val: Run) -> Preprocessing:
-    """The position filter the truth measures with.  At 1 kHz and above the recipe's; below, where
-    the loop chooses its cut-off on the estimation run, the one of the same cut-offs under which
-    the true model (planted and native columns, true delay) fits the estimation run best (the
-    recipe's ``fs/10`` lags the force on slow logs and would inflate every error)."""
+def true_signals(case: dict[str, Any], est: Run, val: Run) -> tuple[Signals, Signals]:
+    """Both runs preprocessed as the truth measures them.  At 1 kHz and above with the recipe's
+    filter; below, where the loop chooses its cut-off on the estimation run, with the one of the
+    same cut-offs under which the true model (planted and native columns, true delay) fits the
+    estimation run best (the recipe's ``fs/10`` lags the force on slow logs and would inflate
+    every error)."""
     cutoffs = Preprocessing().cutoffs(1.0 / float(np.median(np.diff(uniform(est)[0]))))
     if len(cutoffs) == 1:
-        return Preprocessing()
+        return signals(est, val)
     effects = case.get("native", []) + case["effects"]
     delay = est.hold + next((e["tau"] for e in effects if e["name"] == "input_delay"), 0.0)
     off = case.get("baseline", "reference") == "reference"
-
-    def est_error(c: float) -> float:
-        se, sv = signals(est, val, Preprocessing(cutoff_hz=c))
-        return errors(se, sv, effects, delay, off, moving=True)[0]
-
-    return Preprocessing(cutoff_hz=min(cutoffs, key=est_error))
+    tried = [signals(est, val, Preprocessing(cutoff_hz=c)) for c in cutoffs]
+    return min(tried, key=lambda ss: errors(ss[0], ss[1], effects, delay, off, moving=True)[0])
 
 
 def ground_truth(case: dict[str, Any], est: Run, val: Run) -> dict[str, Any]:
     """Per planted effect: marginal and alone held-out gains, detectability; plus context."""
-    pre = true_filter(case, est, val)
-    se, sv = signals(est, val, pre)
+    se, sv = true_signals(case, est, val)
     off = case.get("baseline", "reference") == "reference"
     hold = est.hold
     native = case.get("native", [])
