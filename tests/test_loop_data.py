@@ -229,6 +229,15 @@ def test_cut_offs_to_choose_from_widen_only_below_1_khz(fs, want):
     assert Preprocessing(cutoff_hz=30.0).cutoffs(fs) == [30.0]  # a given cut-off is kept
 
 
+@pytest.mark.parametrize("fs", [float("nan"), 0.0, -100.0, "100"])
+def test_cut_offs_refuse_a_bad_sample_rate_by_name(fs):
+    from gmsfric.errors import InvalidInputError
+    from gmsfric.loop import Preprocessing
+
+    with pytest.raises(InvalidInputError, match="`fs`"):
+        Preprocessing().cutoffs(fs)
+
+
 def test_too_few_moving_rows_keep_the_recipes_cut_off():
     from gmsfric.loop import AxisData, LoopConfig
     from gmsfric.loop.select import MIN_ROWS_TO_CHOOSE_CUTOFF, make_split

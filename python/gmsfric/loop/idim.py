@@ -74,6 +74,8 @@ class Preprocessing:
             raise InvalidInputError(f"`edge_s` must be >= 0, got {self.edge_s}")
 
     def resolve(self, fs: float) -> tuple[float, int, int]:
+        if not finite("fs", fs) > 0:
+            raise InvalidInputError(f"`fs` must be positive, got {fs}")
         fc = self.cutoff_hz if self.cutoff_hz is not None else min(RECIPE_CUTOFF_HZ, fs / 10.0)
         fc = min(fc, 0.45 * fs)
         dec = self.decimation if self.decimation is not None else max(1, int(round(fs / 100.0)))
