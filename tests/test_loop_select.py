@@ -77,6 +77,46 @@ def test_heldout_test_sees_a_real_improvement():
     assert t2 < 0 and p2 > 0.99
 
 
+def _bursts(n: int, chunk: int, every: int) -> np.ndarray:
+    """1 in every ``every``-th chunk, 0 elsewhere: where a local effect (a delay while the force
+    changes, a contact at reversals) acts."""
+    return ((np.arange(n) // chunk) % every == 0).astype(float)
+
+
+def test_heldout_test_of_a_local_improvement_tests_only_where_the_models_differ():
+    """A model that is better in one chunk of three and identical elsewhere: the chunks where the
+    two predict the same carry no evidence and are not tested, so the improvement is seen at a
+    t far above what the mean over all chunks gives."""
+    rng = np.random.default_rng(3)
+    n, chunk = 1500, 60
+    e = _coloured(rng, n)
+    local = 4.0 * np.sin(np.linspace(0, 200, n)) * _bursts(n, chunk, 3)
+    t, p, m = paired_chunk_test(e + local, e, chunk)
+    assert m == 9 and p < 1e-4
+    d = [(np.sum((e + local)[k:k + chunk] ** 2) - np.sum(e[k:k + chunk] ** 2))
+         / (np.sum((e + local)[k:k + chunk] ** 2) + np.sum(e[k:k + chunk] ** 2)) for k in range(0, n, chunk)]
+    assert t > 2 * np.mean(d) / (np.std(d, ddof=1) / np.sqrt(len(d)))
+    t2, p2, _ = paired_chunk_test(e, e + local, chunk)
+    assert t2 < 0 and p2 > 0.99
+
+
+def test_heldout_test_false_rejections_stay_at_their_level_when_the_models_differ_locally():
+    """Two equally good models that differ in one chunk of four only (and there by independent
+    noise): testing only those chunks keeps the one-sided 5 % level."""
+    rng = np.random.default_rng(4)
+    n, chunk, reps = 1500, 60, 400
+    burst = _bursts(n, chunk, 4)
+    rejected = 0
+    for _ in range(reps):
+        e = _coloured(rng, n)
+        r0 = e + 0.5 * _coloured(rng, n, 0.95) * burst
+        r1 = e + 0.5 * _coloured(rng, n, 0.95) * burst
+        t, p, m = paired_chunk_test(r0, r1, chunk)
+        assert m == 7
+        rejected += p <= 0.05
+    assert rejected / reps < 0.08
+
+
 def _dwell_rig_data(seed: int = 5) -> tuple[AxisData, float]:
     """A clean rig whose reference dwells (standstill with a holding force: the drive's integrator
     and the friction share it)."""
@@ -139,6 +179,14 @@ def test_an_effect_that_corrupts_the_baseline_is_refused():
     bad = LinearModel(list(m0.terms), theta=m0.theta * np.array([1.0, 1.0, 0.3, 1.0]), cov=m0.cov)
     change, why = _plausibility(phys, std, bad, split, cfg)
     assert why is not None and "Coulomb level" in why and change["Fc"]["ratio"] == pytest.approx(0.3, rel=1e-3)
+    # the mass: a step may leave it within 3 standard errors of zero (a small inertia behind a
+    # large friction is resolved no better), not significantly negative
+    sd_m, i_m = std["M"], m0.param_names.index("M")
+    for mass, refused in ((-2.0 * sd_m, False), (-4.0 * sd_m, True)):
+        theta = m0.theta.copy()
+        theta[i_m] = mass
+        _, why = _plausibility(phys, std, LinearModel(list(m0.terms), theta=theta, cov=m0.cov), split, cfg)
+        assert (why is not None and "mass" in why) == refused
 
 
 def _pair_state(force_extra, seed: int = 3):

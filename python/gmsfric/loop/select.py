@@ -72,6 +72,15 @@ from .results import LoopResult, Step
 #: Fractions of one sample tried for the timing alignment.
 ALIGNMENT_GRID = np.round(np.linspace(0.0, 1.0, 11), 3)
 
+#: A held-out chunk where two models' predictions differ by less than this fraction of the mean
+#: chunk's difference carries no evidence between them (:func:`informative_chunks`).  On a
+#: trapezoid run a delay changes the force in the acceleration phases only: its cruise chunks
+#: differ by under 1 % of the mean, its acceleration chunks by 40-800 %.
+INFORMATIVE_FRACTION = 0.05
+
+#: The paired chunk test uses at least this many chunks.
+MIN_TESTED_CHUNKS = 6
+
 #: A contested variant (:attr:`Effect.contested`, e.g. a Stribeck hump that never falls, which a
 #: drag resembles) stands only with a cross-validated error at most this fraction of the best
 #: probe's.  On the campaign's drag rigs the best such hump came within 0.97-1.0 of the drag probe,
@@ -343,11 +352,20 @@ def paired_chunk_test(r0: Array, r1: Array, chunk: int) -> tuple[float, float, i
     ``d`` is scale-free and bounded (-1 to 1): every chunk weighs the same, a few chunks with
     large forces (reversals, pulses) do not swamp the others, and a chunk where both errors are
     small noise cannot produce an outlier.  For an effect fitted on other data and useless here
-    its mean is zero or below.  Returns ``(t, p, m)``."""
+    its mean is zero or below.
+
+    Only the chunks where the two models disagree are tested (:func:`informative_chunks`): where
+    they predict the same force, ``d`` is noise about zero and would only dilute an effect that
+    acts in a few places (a delay while the force changes, a contact at reversals).  The choice
+    depends on ``r0 - r1``, the difference of the two predictions, not on the measured force, so
+    a useless effect still has a mean ``d`` of zero or below.  Returns ``(t, p, m)`` with ``m``
+    the chunks tested."""
     m = max(2, r0.size // chunk)
     c = r0.size // m
     a = (r0[: m * c] ** 2).reshape(m, c).sum(axis=1)
     b = (r1[: m * c] ** 2).reshape(m, c).sum(axis=1)
+    keep = informative_chunks(((r0 - r1)[: m * c] ** 2).reshape(m, c).sum(axis=1))
+    a, b, m = a[keep], b[keep], int(keep.sum())
     d = (a - b) / np.maximum(a + b, 1e-300)
     mean = float(d.mean())
     dc = d - mean
@@ -361,6 +379,21 @@ def paired_chunk_test(r0: Array, r1: Array, chunk: int) -> tuple[float, float, i
         t = mean / float(np.sqrt(var))
     p = float(stats.t.sf(t, m - 1)) if np.isfinite(t) else (0.0 if t > 0 else 1.0)
     return float(t), p, m
+
+
+def informative_chunks(disagreement: Array) -> Array:
+    """The chunks (mask) whose summed squared difference of the two models' predictions is at
+    least :data:`INFORMATIVE_FRACTION` of the mean chunk's; at least :data:`MIN_TESTED_CHUNKS`
+    (those that disagree most) when fewer do, all of them when the models agree everywhere."""
+    m = disagreement.size
+    mean = float(disagreement.mean())
+    if m <= MIN_TESTED_CHUNKS or not mean > 0:
+        return np.ones(m, dtype=bool)
+    keep = disagreement >= INFORMATIVE_FRACTION * mean
+    if keep.sum() < MIN_TESTED_CHUNKS:
+        keep = np.zeros(m, dtype=bool)
+        keep[np.argsort(disagreement)[-MIN_TESTED_CHUNKS:]] = True
+    return keep
 
 
 def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, rows: Array | None = None) -> HeldOut:
@@ -463,8 +496,8 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
     """Baseline parameters before (the baseline's) and with this step, and why they are
     implausible (``None`` when they are not).
 
-    The mass and the viscous coefficient must stay physical (positive, or not significantly
-    negative).  They may move a lot: the baseline absorbs whatever a missing effect correlates
+    The mass and the viscous coefficient must stay physical: not below -3 standard errors of the
+    baseline's (a small inertia behind a large friction, a robot joint's, is resolved no better).  They may move a lot: the baseline absorbs whatever a missing effect correlates
     with (a spring ``k q`` looks like ``-k/w^2 qdd`` on an oscillation, a delay shifts force onto
     ``qdd`` and ``qd``), and the right effect gives it back.  The Coulomb level is what the axis
     slides at, a level every trajectory shows: an effect that changes the effective level by more
@@ -479,8 +512,8 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
         if why is not None or not np.isfinite(a):
             continue
         sd = base_std.get(k, 0.0)
-        if k == "M" and a <= 0:
-            why = f"implausible baseline: the mass becomes {a:.4g} (not positive)"
+        if k == "M" and a < -3.0 * sd:
+            why = f"implausible baseline: the mass becomes {a:.4g} (negative)"
         elif k == "Fv" and a < -3.0 * sd:
             why = f"implausible baseline: the viscous coefficient becomes {a:.4g} (negative)"
         elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and not 1.0 / cfg.max_parameter_ratio <= ratio <= cfg.max_parameter_ratio:
