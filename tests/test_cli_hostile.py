@@ -31,6 +31,7 @@ def files(tmp_path_factory):
     (d / "folder").mkdir()
     (d / "existing.txt").write_text("not a folder")
     savemat(d / "run.mat", {"t": t[:, None], "x": x[:, None], "F": np.tanh(x * 1e5)[:, None]})
+    savemat(d / "huge.mat", {"t": t[:, None], "x": x[:, None] * 1e300, "F": np.tanh(x * 1e5)[:, None]})
     (d / "bad.json").write_text("{not json")
     (d / "list.json").write_text("[1, 2, 3]")
     (d / "furlong.json").write_text(json.dumps({"model": "static_map", "parameters": {n: 1.0 for n in ("fc", "fs", "vs", "sigma", "delta")},
@@ -58,6 +59,7 @@ CASES = [
     (["identify", "presliding", "{d}/latin1.csv", "--time", "t", "--position", "x", "--force", "F"], 2, "not UTF-8"),
     (["identify", "presliding", "{d}/missing.csv", "--time", "t", "--position", "x", "--force", "F"], 2, "no such file"),
     (["identify", "presliding", "{d}/empty.csv", "--time", "t", "--position", "x", "--force", "F"], 2, "file is empty"),
+    (["loop", "{d}/huge.mat", "--time", "t", "--position", "x", "--force", "F"], 2, "(position) reaches 1e+295, beyond 1.3e+147 where the fits overflow"),
     (["loop", "{d}/folder", "--time", "t", "--position", "x", "--force", "F"], 2, "is a directory"),
     ([*LOOP, "--validate", "{d}/folder"], 2, "is a directory"),
     (["glitch", "--plant", "{d}/folder"], 2, "is a directory"),

@@ -45,6 +45,10 @@ T = np.linspace(0, 1, 11)
         (lambda: g.simulate_closed_loop(presets.paper_plant(), None, presets.paper_pid(), np.zeros(10), 1e-3, load_force=np.full(10, np.nan)), "`load_force` has a non-finite value"),
         (lambda: g.simulate_closed_loop(presets.paper_plant(), None, presets.paper_pid(), np.zeros(10), 1e-3, quantization=-1.0), "`quantization` must be >= 0"),
         (lambda: g.Plant(1.0, 1.0, 1.0).simulate(np.ones(3), dt=0), "`dt` must be > 0"),
+        # finite measured signals whose squares overflow the fits' sums (a wrong unit or a corrupt log)
+        (lambda: g.identify.estimate_frf(np.arange(256) * 1e-3, np.ones(256) * 1e200, np.ones(256)), "`input` reaches 1e\\+200.*check its unit"),
+        (lambda: g.identify.fit_static_map(np.linspace(-1, 1, 20), np.full(20, 1e160)), "`force` reaches 1e\\+160"),
+        (lambda: g.identify.fit_presliding(np.arange(100) * 1e-3, np.sin(np.arange(100)) * 1e150, np.ones(100)), "`position` reaches 1e\\+150"),
     ],
 )
 def test_bad_input_names_the_argument(call, match):

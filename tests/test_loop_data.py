@@ -7,7 +7,7 @@ import pytest
 from scipy.io import savemat
 
 from gmsfric.errors import DataError
-from gmsfric.loop import load_axis_data
+from gmsfric.loop import AxisData, load_axis_data
 from gmsfric.units import UnitError
 
 
@@ -85,6 +85,15 @@ def test_non_monotonic_time(tmp_path):
     p = _csv(tmp_path / "run.csv", {"t": t, "q": q, "F": f})
     with pytest.raises(DataError, match="not strictly increasing at row 200"):
         load_axis_data(p, time="t", position="q", force="F")
+
+
+def test_magnitudes_a_fit_cannot_square_are_refused_and_large_physical_ones_are_not():
+    t, q, f = _run()
+    with pytest.raises(DataError, match=r"force reaches 3e\+200.*check its unit"):
+        AxisData(t, q, f * 1e200)
+    # nanometre counts of a metre of travel, a micro-second log: far from the limit, accepted
+    data = AxisData(t * 1e-3, q * 1e9, f)
+    assert np.isfinite(data.position).all() and data.position.max() > 1e6
 
 
 def test_too_few_samples(tmp_path):

@@ -40,6 +40,36 @@ def as_array(name: str, values: ArrayLike, *, min_len: int = 1) -> NDArray[np.fl
     return arr
 
 
+#: Largest magnitude of a measured signal, or of a position over the squared time step (the scale of
+#: its acceleration): fits square and sum these over up to 1e12 rows, through filters that may
+#: amplify them, and beyond this the sums overflow and every fitted number comes out nan.
+MAX_SIGNAL_MAGNITUDE = float(np.sqrt(np.finfo(np.float64).max)) * 1e-7
+
+
+def within_fit_range(label: str, values: NDArray[np.float64], *, time_step: float | None = None,
+                     error: type[InvalidInputError] = InvalidInputError) -> None:
+    """Raise ``error`` naming ``label`` when ``values`` exceed :data:`MAX_SIGNAL_MAGNITUDE`, or,
+    given the smallest ``time_step`` of a position, when the position over that step squared (the
+    scale of its acceleration) does: no unit of a real axis gets there, so it is a wrong unit or a
+    corrupt log, and the fits would only return nan."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        peak = np.float64(np.max(np.abs(values), initial=0.0))
+        scaled = peak / np.square(np.float64(time_step)) if time_step is not None and peak else peak
+    if not scaled <= MAX_SIGNAL_MAGNITUDE:
+        if time_step is None:
+            raise error(f"{label} reaches {peak:.3g}, beyond {MAX_SIGNAL_MAGNITUDE:.1e} where the fits overflow; check its unit")
+        raise error(f"{label} reaches {peak:.3g} with time steps down to {time_step:.3g}, an acceleration of {scaled:.3g}, "
+                    f"beyond {MAX_SIGNAL_MAGNITUDE:.1e} where the fits overflow; check the units of position and time")
+
+
+def measured_signal(name: str, values: ArrayLike, *, min_len: int = 1) -> NDArray[np.float64]:
+    """:func:`as_array` for a measured signal that a fit squares and sums: also refused beyond
+    :data:`MAX_SIGNAL_MAGNITUDE` (see :func:`within_fit_range`)."""
+    arr = as_array(name, values, min_len=min_len)
+    within_fit_range(f"`{name}`", arr)
+    return arr
+
+
 def same_length(name: str, arr: NDArray[Any], other: str, n: int) -> None:
     if arr.size != n:
         raise InvalidInputError(f"`{name}` has length {arr.size} but `{other}` has length {n}: they must match")

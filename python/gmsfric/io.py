@@ -20,6 +20,7 @@ from typing import Iterator, Mapping
 import numpy as np
 from numpy.typing import NDArray
 
+from ._validate import within_fit_range
 from .errors import DataError
 
 
@@ -181,6 +182,11 @@ def load_columns(path: str | Path | Table, mapping: Mapping[str, str], *, min_sa
         if np.any(d <= 0):
             i = int(np.flatnonzero(d <= 0)[0]) + 1
             raise DataError(f"{table.source}: time column {mapping['time']!r} is not strictly increasing at row {i}")
+    for role, a in out.items():
+        within_fit_range(f"{table.source}: column {mapping[role]!r} ({role})", a, error=DataError)
+    if "time" in out and "position" in out:
+        within_fit_range(f"{table.source}: column {mapping['position']!r} (position)", out["position"],
+                         time_step=float(np.min(np.diff(out["time"]))), error=DataError)
     return out
 
 

@@ -36,7 +36,7 @@ from scipy.optimize import least_squares  # type: ignore[import-untyped, unused-
 
 from . import units as _units
 from ._progress import Progress
-from ._validate import as_array, count, finite, positive, same_length
+from ._validate import count, finite, measured_signal, positive, same_length
 from .axis import AxisModel, Covariance, parameter_quantity
 from .batch import simulate_batch
 from .errors import InvalidInputError, SimulationError
@@ -386,7 +386,7 @@ def _block_jackknife(jac: Sequence[NDArray[np.float64]], res: Sequence[NDArray[n
 def _channel_array(name: str, value: ArrayLike | None, n: int) -> NDArray[np.float64] | None:
     if value is None:
         return None
-    arr = as_array(name, value, min_len=2)
+    arr = measured_signal(name, value, min_len=2)
     same_length(name, arr, "position", n)
     return arr
 
@@ -489,7 +489,7 @@ def fit_output_error(
     if not isinstance(model, AxisModel):
         raise InvalidInputError(f"`model` must be an AxisModel, got {type(model).__name__}")
     dt = positive("dt", dt)
-    y = as_array("position", position, min_len=10)
+    y = measured_signal("position", position, min_len=10)
     n = y.size
     skip = count("skip", skip, minimum=0, maximum=n - 10)
     diff_step = positive("diff_step", diff_step)

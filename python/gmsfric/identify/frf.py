@@ -23,7 +23,7 @@ from scipy import signal
 from scipy.optimize import least_squares
 
 from .. import units as _units
-from .._validate import as_array, positive, same_length
+from .._validate import measured_signal, positive, same_length
 from ..errors import IdentificationError, InvalidInputError, SimulationError
 from ..batch import simulate_batch
 from ..system import Plant
@@ -187,13 +187,13 @@ def estimate_frf(
     detrend : str
         Detrending of each segment (``"linear"`` removes drift in open-loop position records).
     """
-    u = as_array("input", u, min_len=64)
-    y = as_array("output", y)
+    u = measured_signal("input", u, min_len=64)
+    y = measured_signal("output", y)
     same_length("output", y, "input", u.size)
     if np.isscalar(t):
         fs = positive("sample_rate", float(t))  # type: ignore[arg-type]
     else:
-        tt = as_array("time", t)
+        tt = measured_signal("time", t)
         same_length("time", tt, "input", u.size)
         d = np.diff(tt)
         if np.any(d <= 0):
@@ -207,7 +207,7 @@ def estimate_frf(
     nperseg = int(min(nperseg, n))
     if np.ptp(u) == 0:
         raise IdentificationError("the input is constant: no excitation to estimate a frequency response from")
-    ref = u if excitation is None else as_array("excitation", excitation)
+    ref = u if excitation is None else measured_signal("excitation", excitation)
     same_length("excitation", ref, "input", n)
     kw = dict(fs=fs, nperseg=nperseg, detrend=detrend, window="hann")
     f, p_rr = signal.welch(ref, **kw)

@@ -43,7 +43,7 @@ from scipy.signal import savgol_coeffs, savgol_filter
 from .. import curves
 from .. import units as _units
 from .._progress import Progress
-from .._validate import as_array, positive, same_length
+from .._validate import measured_signal, positive, same_length
 from ..batch import simulate_friction_batch
 from ..errors import IdentificationError, InvalidInputError
 from ..models import GMS, MaxwellSlip, Stribeck
@@ -106,9 +106,9 @@ def presliding_units(position_unit: str, force_unit: str, time_unit: str = "s") 
 
 
 def _record_si(t: ArrayLike, position: ArrayLike, force: ArrayLike, f: Mapping[str, float]) -> tuple[NDArray[np.float64], ...]:
-    t = as_array("time", t, min_len=10)
-    x = as_array("position", position)
-    F = as_array("force", force)
+    t = measured_signal("time", t, min_len=10)
+    x = measured_signal("position", position)
+    F = measured_signal("force", force)
     same_length("position", x, "time", t.size)
     same_length("force", F, "time", t.size)
     if np.any(np.diff(t) <= 0):
@@ -241,9 +241,9 @@ def build_virgin_curve(
     IdentificationError
         Fewer than 3 reversals, or too few points on the curve.
     """
-    t = as_array("time", t, min_len=10)
-    x = as_array("position", position)
-    F = as_array("force", force)
+    t = measured_signal("time", t, min_len=10)
+    x = measured_signal("position", position)
+    F = measured_signal("force", force)
     same_length("position", x, "time", t.size)
     same_length("force", F, "time", t.size)
     if resolution is None:

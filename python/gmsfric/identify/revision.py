@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from .._progress import Progress
-from .._validate import as_array, positive, same_length
+from .._validate import measured_signal, positive, same_length
 from ..errors import IdentificationError, InvalidInputError
 from ..models import FrictionModel
 from ..system import Controller, Plant, simulate_closed_loop
@@ -91,9 +91,9 @@ def revise_plant(
         ``model="revised_plant"``, parameters ``a b c delay`` (SI), ``model_object`` the revised
         Plant; ``data`` holds the measured, original-combined and revised-combined FRFs.
     """
-    t = as_array("time", t, min_len=64)
-    u = as_array("drive", drive)
-    y = as_array("output", output)
+    t = measured_signal("time", t, min_len=64)
+    u = measured_signal("drive", drive)
+    y = measured_signal("output", output)
     same_length("drive", u, "time", t.size)
     same_length("output", y, "time", t.size)
     if not isinstance(plant, Plant):
@@ -102,7 +102,7 @@ def revise_plant(
     if controller is not None:
         if excitation is None:
             raise InvalidInputError("closed-loop revision needs the recorded `excitation`")
-        exc = as_array("excitation", excitation)
+        exc = measured_signal("excitation", excitation)
         same_length("excitation", exc, "time", t.size)
         measured = estimate_frf(t, u, y, excitation=exc, nperseg=nperseg)
         sim_drive = exc

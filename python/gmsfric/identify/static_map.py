@@ -20,7 +20,7 @@ from scipy.optimize import least_squares
 from .. import curves
 from .. import units as _units
 from .._progress import Progress
-from .._validate import as_array, positive, same_length
+from .._validate import as_array, measured_signal, positive, same_length
 from ..errors import FitWarning, IdentificationError, InvalidInputError
 from ..models import StaticFriction, Stribeck
 from .diagnostics import Findings, check_bounds, check_chi2, check_stderr, emit
@@ -406,9 +406,9 @@ def find_plateaus(
     PlateauSearch
         ``plateaus`` (kept) and ``rejected``.
     """
-    t = as_array("time", t, min_len=10)
-    x = as_array("position", position)
-    f = as_array("force", force)
+    t = measured_signal("time", t, min_len=10)
+    x = measured_signal("position", position)
+    f = measured_signal("force", force)
     same_length("position", x, "time", t.size)
     same_length("force", f, "time", t.size)
     if isinstance(n_blocks, bool) or int(n_blocks) != n_blocks or n_blocks < 4:
@@ -495,8 +495,8 @@ def fit_static_map(
         Too few points or distinct speeds.
     """
     units = static_map_units(velocity_unit, force_unit)
-    v_u = as_array("velocity", velocity)
-    F_u = as_array("force", force)
+    v_u = measured_signal("velocity", velocity)
+    F_u = measured_signal("force", force)
     same_length("force", F_u, "velocity", v_u.size)
     if isinstance(bootstrap, bool) or int(bootstrap) != bootstrap or bootstrap < 0:
         raise InvalidInputError(f"`bootstrap` must be an integer >= 0, got {bootstrap!r}")
@@ -640,9 +640,9 @@ def fit_static_map_from_run(
     static_map_units(velocity_unit, force_unit)
     kv_report = _units.factor(velocity_unit, "velocity", name="velocity_unit")
     kf = _units.factor(force_unit, "force", name="force_unit")
-    t_u = as_array("time", t, min_len=10)
-    x_u = as_array("position", position)
-    F_u = as_array("force", force)
+    t_u = measured_signal("time", t, min_len=10)
+    x_u = measured_signal("position", position)
+    F_u = measured_signal("force", force)
     same_length("position", x_u, "time", t_u.size)
     same_length("force", F_u, "time", t_u.size)
     # SI once: the plateau search and the fit see SI numbers only

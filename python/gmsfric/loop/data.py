@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import units
+from .._validate import within_fit_range
 from ..errors import DataError
 from ..io import Table, load_columns, read_table
 
@@ -83,6 +84,10 @@ class AxisData:
         if np.any(d <= 0):
             i = int(np.flatnonzero(d <= 0)[0]) + 1
             raise DataError(f"{self.source}: time is not strictly increasing at row {i}")
+        for name in ("t", "position", "force", "command", "reference", "disturbance"):
+            if (a := getattr(self, name)) is not None:
+                within_fit_range(f"{self.source}: {name}", a, error=DataError)
+        within_fit_range(f"{self.source}: position", self.position, time_step=float(np.min(d)), error=DataError)
         if not self.timing:
             self.timing = timing_summary(self.t)
             if self.timing["irregular"]:
