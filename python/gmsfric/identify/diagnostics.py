@@ -29,6 +29,8 @@ CODES = {
     "saturation": "a signal is clipped at its extremes (drive or sensor saturation)",
     "closed_loop": "the input depends on the past output: closed-loop data fed to an open-loop estimator",
     "data": "few or rejected data (plateaus, bins, reversals)",
+    "poor_fit": "the model explains little of the data (wrong signal, gain or unit?)",
+    "units": "a scale implausible for a servo axis (sample rate, speed): a column in another unit than declared?",
 }
 
 
@@ -69,8 +71,9 @@ def emit(result: Any, findings: Findings, *, stacklevel: int = 3) -> None:
     """Store ``findings`` in ``result.diagnostics`` (as JSON-able dicts, after any already there)
     and warn each with :class:`~gmsfric.errors.FitWarning`."""
     result.diagnostics = list(result.diagnostics) + [d.to_dict() for d in findings.items]
+    label = getattr(result, "model", None) or result.kind
     for d in findings.items:
-        warnings.warn(f"{result.model}: {d.message}", FitWarning, stacklevel=stacklevel)
+        warnings.warn(f"{label}: {d.message}", FitWarning, stacklevel=stacklevel)
 
 
 def format_block(diagnostics: list[Mapping[str, Any]]) -> str:

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from typing import Any
 
 from .. import units as _units
 from ..cli import Run, declare_files, fraction, positive_float
-from ..errors import DataError
+from ..errors import DataError, FitWarning
+from ..identify.diagnostics import format_block
 from ..io import read_table
 from ..system import Cascade
 from .closedloop import closed_loop_report
@@ -83,7 +85,9 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
         val = load_axis_data(args.validate, disturbance=args.disturbance, **common)
     base = ("inertia", "viscous", "coulomb", "offset") if args.baseline == "reference" else ("inertia", "viscous", "coulomb")
     cfg = LoopConfig(preprocessing=Preprocessing(cutoff_hz=args.cutoff_hz), holdout_fraction=args.holdout, baseline=base, progress=run.progress)
-    result = run_loop(est, val, cfg)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FitWarning)  # printed under the table instead
+        result = run_loop(est, val, cfg)
     ctrl = None
     if args.reference and args.kp is not None and args.kv is not None:
         kp, kv = est_table.number(args.kp, "kp"), est_table.number(args.kv, "kv")
@@ -97,6 +101,9 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
     if args.fit == "simulation" or args.open_loop:
         result = add_simulation(result, ctrl, fit=args.fit == "simulation", open_loop=args.open_loop, progress=run.progress)
     print(result.table())
+    block = format_block(result.diagnostics)
+    if block:
+        print(block)
     columns = {"time": args.time, "position": args.position, "force": args.force, "command": args.command_col, "reference": args.reference,
                "disturbance": args.disturbance}
     result.provenance = run.provenance(columns=columns, units={"time": args.time_unit, "position": args.position_unit, "force": args.force_unit},

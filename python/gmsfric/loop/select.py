@@ -63,6 +63,8 @@ from scipy import optimize, stats
 from .._progress import Progress
 from .._validate import count, finite
 from ..errors import IdentificationError, InvalidInputError
+from ..identify.diagnostics import emit
+from .checks import check_result
 from .data import AxisData
 from .effects import CATALOGUE, Effect, dip_resolution, settled_rows
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
@@ -1140,7 +1142,9 @@ def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | No
     split, chunk = stage_prepare(est, val, cfg)
     st = stage_baseline(split, chunk, cfg)
     stage_select(st, cfg, names)
-    return stage_report(st, cfg, names)
+    result = stage_report(st, cfg, names)
+    emit(result, check_result(result))
+    return result
 
 
 def _analyse_rows(S: Signals, rows: Array, r: Array, y_hat: Array, seed: int) -> list[Finding]:
