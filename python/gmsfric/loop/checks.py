@@ -3,9 +3,9 @@
 The loop can end with "no effect added" and a tidy table on a run that did not let it identify
 anything: a force column unrelated to the motion, a run in one direction only (Coulomb friction
 and an offset are then one number), a clipped drive, a time or position column in another unit
-than declared.  These checks put such findings in the
-result's ``diagnostics`` (``{"code", "parameter", "message"}`` in the JSON) and warn each with
-:class:`~gmsfric.errors.FitWarning`; the CLI prints them under the table.
+than declared.  These checks put such findings in the result's ``diagnostics`` (``{"code",
+"parameter", "message"}`` in the JSON) and warn each with :class:`~gmsfric.errors.FitWarning`;
+the CLI prints them under the table.  They only report: the selection does not use them.
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ BASELINE_PARAMETERS = ("M", "Fv", "Fc", "offset")
 SAMPLE_RATE_RANGE = (20.0, 200e3)
 
 #: Top speeds (99th percentile; m/s linear, rad/s rotary) beyond those of servo axes (linear
-#: motors reach a few m/s, spindles-turned-axes some thousand rad/s): most likely a position
-#: in mm or deg read as m or rad.
+#: motors reach a few m/s, motor shafts a few thousand rad/s): most likely a position in mm or
+#: deg read as m or rad.
 TOP_SPEED = {"linear": 20.0, "rotary": 2000.0}
 
 
