@@ -47,6 +47,12 @@ def test_bad_files(tmp_path, content, mapping, match):
         load_columns(f, mapping)
 
 
+@pytest.mark.parametrize("path", [None, 5, b"\xff"])
+def test_a_path_that_is_no_path_is_named(path):
+    with pytest.raises(DataError, match="must be a path"):
+        load_columns(path, {"time": "t"})
+
+
 def test_mismatched_lengths_and_missing_file(tmp_path):
     savemat(tmp_path / "m.mat", {"t": np.arange(20.0), "q": np.arange(15.0)})
     with pytest.raises(DataError, match="different lengths"):

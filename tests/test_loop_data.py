@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.io import savemat
 
-from gmsfric.errors import DataError
-from gmsfric.loop import AxisData, load_axis_data
+from gmsfric.errors import DataError, InvalidInputError
+from gmsfric.loop import AxisData, load_axis_data, run_loop
 from gmsfric.units import UnitError
 
 
@@ -256,3 +256,31 @@ def test_too_few_moving_rows_keep_the_recipes_cut_off():
     split = make_split(AxisData(t, q, np.cos(t), source="short"), None, LoopConfig(progress=False))
     assert split.preprocessing["chosen_by"].startswith("the recipe (fewer than")
     assert split.preprocessing["cutoff_hz"] == pytest.approx(10.0) and split.est_fit.sum() < MIN_ROWS_TO_CHOOSE_CUTOFF
+
+
+_T, _Q, _F = _run()
+
+
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda: AxisData(None, _Q, _F), "`t` is missing"),
+        (lambda: AxisData(_T[:, None], _Q, _F), "`t` must be one-dimensional"),
+        (lambda: AxisData(np.r_[_T[:7], np.nan, _T[8:]], _Q, _F), "t has a non-finite value at row 7"),
+        (lambda: AxisData(_T, ["a"] * _T.size, _F), "`position` must be numeric"),
+        (lambda: AxisData(_T, _Q, _F, command=_F, gain=float("nan")), "`gain` must be finite and non-zero"),
+        (lambda: AxisData(_T, _Q, _F, command=_F, gain=0.0), "`gain` must be finite and non-zero"),
+        (lambda: AxisData(_T, _Q, _F, rotary="yes"), "`rotary` must be True or False"),
+        (lambda: run_loop("run.csv"), "`est` must be an AxisData"),
+        (lambda: run_loop(AxisData(_T, _Q, _F), _T), "`val` must be an AxisData"),
+    ],
+)
+def test_the_python_entry_points_name_a_bad_argument(make, match):
+    with pytest.raises(InvalidInputError, match=match) as info:
+        make()
+    assert isinstance(info.value, ValueError)
+
+
+def test_plain_lists_are_accepted_as_columns():
+    data = AxisData(list(_T), list(_Q), list(_F))
+    assert data.position.dtype == np.float64 and data.dt == pytest.approx(1e-3)

@@ -73,6 +73,8 @@ def check_input_file(path: str | Path, *, role: str = "file") -> Path:
     DataError
         Naming the file and what is wrong with it.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise DataError(f"the {role} must be a path (str or pathlib.Path), got {type(path).__name__}")
     p = Path(path)
     if not p.exists():
         raise DataError(f"{p}: no such file")

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import units
-from .._validate import within_fit_range
+from .._validate import float_array, number, show, within_fit_range
 from ..errors import DataError
 from ..io import Table, load_columns, read_table
 
@@ -66,18 +66,26 @@ class AxisData:
     timing: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        n = self.t.size
-        for name in ("position", "force", "command", "reference", "disturbance"):
+        if not isinstance(self.rotary, (bool, np.bool_)):
+            raise DataError(f"{self.source}: `rotary` must be True or False, got {show(self.rotary)}")
+        if self.gain is not None and not (np.isfinite(number("gain", self.gain)) and self.gain != 0):
+            raise DataError(f"{self.source}: `gain` must be finite and non-zero, got {show(self.gain)}")
+        n = None
+        for name in ("t", "position", "force", "command", "reference", "disturbance"):
             a = getattr(self, name)
-            if a is None:
+            if a is None and name not in ("t", "position", "force"):
                 continue
-            a = np.ascontiguousarray(a, dtype=float)
+            a = float_array(name, a)
+            if a.ndim != 1:
+                raise DataError(f"{self.source}: `{name}` must be one-dimensional, got shape {a.shape}")
             setattr(self, name, a)
+            n = a.size if n is None else n
             if a.size != n:
                 raise DataError(f"{self.source}: {name} has {a.size} samples but time has {n}")
             bad = np.flatnonzero(~np.isfinite(a))
             if bad.size:
                 raise DataError(f"{self.source}: {name} has a non-finite value at row {bad[0]}")
+        n = self.t.size
         if n < MIN_SAMPLES:
             raise DataError(f"{self.source}: too few samples ({n}); the loop needs at least {MIN_SAMPLES}")
         d = np.diff(self.t)

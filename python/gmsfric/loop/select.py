@@ -1135,6 +1135,9 @@ def run_loop(est: AxisData, val: AxisData | None = None, config: LoopConfig | No
         force rows; on the moving rows under ``standstill``), unexplained residual structure and
         the residual tests.
     """
+    for name, run in (("est", est), ("val", val)):
+        if not (isinstance(run, AxisData) or (name == "val" and run is None)):
+            raise InvalidInputError(f"`{name}` must be an AxisData (see gmsfric.loop.load_axis_data), got {type(run).__name__}")
     cfg = config or LoopConfig()
     if not isinstance(cfg, LoopConfig):
         raise InvalidInputError(f"`config` must be a LoopConfig, got {type(cfg).__name__}")
