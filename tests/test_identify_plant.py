@@ -107,3 +107,18 @@ def test_delay_beyond_two_periods_of_the_highest_bin_is_found():
     assert res.value("delay") == pytest.approx(plant.delay, rel=0.01)
     assert res.value("a") == pytest.approx(plant.a, rel=0.02)
     assert not [d for d in res.diagnostics if d["code"] == "at_bound" and d["parameter"] == "delay"]
+
+
+@pytest.mark.parametrize("t_scale, u_scale, y_scale", [(1e-250, 1e-100, 1e100), (1e140, 1e120, 1e-120), (1e-3, 1.0, 1e3)])
+def test_the_frf_does_not_depend_on_the_units_of_time_and_amplitude(t_scale, u_scale, y_scale):
+    rng = np.random.default_rng(1)
+    n = 4096
+    t = np.arange(n) * 1e-3
+    u = rng.standard_normal(n)
+    y = np.convolve(u, np.exp(-np.arange(40) / 8.0), mode="full")[:n] + 0.01 * rng.standard_normal(n)
+    ref = estimate_frf(t, u, y)
+    scaled = estimate_frf(t * t_scale, u * u_scale, y * y_scale)
+    assert np.isfinite(scaled.H).all() and np.isfinite(scaled.f).all()
+    np.testing.assert_allclose(scaled.f, ref.f / t_scale, rtol=1e-12)
+    np.testing.assert_allclose(scaled.H, ref.H * (y_scale / u_scale), rtol=1e-9)
+    np.testing.assert_allclose(scaled.coherence, ref.coherence, rtol=1e-9, atol=1e-12)

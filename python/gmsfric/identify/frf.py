@@ -23,7 +23,7 @@ from scipy import signal
 from scipy.optimize import least_squares
 
 from .. import units as _units
-from .._validate import measured_signal, positive, same_length
+from .._validate import measured_signal, positive, same_length, step
 from ..errors import IdentificationError, InvalidInputError, SimulationError
 from ..batch import simulate_batch
 from ..system import Plant
@@ -192,6 +192,7 @@ def estimate_frf(
     same_length("output", y, "input", u.size)
     if np.isscalar(t):
         fs = positive("sample_rate", float(t))  # type: ignore[arg-type]
+        step("1 / sample_rate", 1.0 / fs)
     else:
         tt = measured_signal("time", t)
         same_length("time", tt, "input", u.size)
@@ -200,7 +201,7 @@ def estimate_frf(
             raise InvalidInputError("`time` must increase strictly")
         if np.ptp(d) > 1e-3 * np.median(d):
             raise InvalidInputError("`time` must be uniformly sampled for the FRF (resample first)")
-        fs = 1.0 / float(np.mean(d))
+        fs = 1.0 / step("time step", float(np.mean(d)))
     n = u.size
     if nperseg is None:
         nperseg = int(2 ** np.floor(np.log2(max(n / 16, 32))))
@@ -209,19 +210,27 @@ def estimate_frf(
         raise IdentificationError("the input is constant: no excitation to estimate a frequency response from")
     ref = u if excitation is None else measured_signal("excitation", excitation)
     same_length("excitation", ref, "input", n)
-    kw = dict(fs=fs, nperseg=nperseg, detrend=detrend, window="hann")
-    f, p_rr = signal.welch(ref, **kw)
-    _, p_yy = signal.welch(y, **kw)
-    _, p_ry = signal.csd(ref, y, **kw)
-    if excitation is None:
-        H = p_ry / p_rr
-    else:
-        _, p_ru = signal.csd(ref, u, **kw)
-        H = p_ry / p_ru
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # Spectra of the records scaled to unit peak at unit sample rate: H and the coherence are
+    # ratios that do not depend on either scale, and extreme units or rates cannot then
+    # underflow or overflow the spectra.
+    s_ref, s_u, s_y = (float(np.max(np.abs(a))) or 1.0 for a in (ref, u, y))
+    kw = dict(fs=1.0, nperseg=nperseg, detrend=detrend, window="hann")
+    f, p_rr = signal.welch(ref / s_ref, **kw)
+    f = f * fs
+    _, p_yy = signal.welch(y / s_y, **kw)
+    _, p_ry = signal.csd(ref / s_ref, y / s_y, **kw)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if excitation is None:
+            H = p_ry / p_rr * (s_y / s_u)
+        else:
+            _, p_ru = signal.csd(ref / s_ref, u / s_u, **kw)
+            H = p_ry / p_ru * (s_y / s_u)
         coh = np.nan_to_num(np.abs(p_ry) ** 2 / (p_rr * p_yy), nan=0.0)
     n_avg = max(1, int((n - nperseg) // (nperseg // 2) + 1))
-    m = f > 0
+    # a bin without input power has no response to estimate
+    m = (f > 0) & np.isfinite(H)
+    if not m.any():
+        raise IdentificationError("no frequency of the record carries input power: no frequency response to estimate")
     win = signal.get_window("hann", nperseg)
     w2 = win**2
     k = np.arange(nperseg)

@@ -439,6 +439,11 @@ def find_plateaus(
         out.plateaus = [p for p, sh in zip(out.plateaus, short) if not sh]
     return out
 
+#: Speeds (SI) a static map is fitted over: below a picometre per second no friction curve is
+#: measured, beyond a kilometre per second no axis moves; outside, the fit only crawls.
+SPEED_RANGE = (1e-12, 1e3)
+
+
 def fit_static_map(
     velocity: ArrayLike,
     force: ArrayLike,
@@ -520,6 +525,10 @@ def fit_static_map(
         raise IdentificationError(f"need at least 4 distinct speeds to fit 5 parameters, got {np.unique(np.abs(v_u)).size}")
     # the fit runs in SI (scale-free: logs of vs and delta, relative weights)
     v, F, se = v_u * kv, F_u * kf, se_u * (kf if force_stderr is not None else 1.0)
+    fastest = float(np.abs(v).max())
+    if not SPEED_RANGE[0] <= fastest <= SPEED_RANGE[1]:
+        raise InvalidInputError(f"`velocity`: the fastest point is {fastest:.3g} (SI, m/s or rad/s), outside the "
+                                f"{SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} a static map can be fitted over; check `velocity_unit`")
     speed, mag, w = np.abs(v), np.sign(v) * F, 1.0 / se
     known = force_stderr is not None
     q, params_si, r = _fit_side(speed, mag, w, delta_bounds, known)
