@@ -148,6 +148,7 @@ def _registry() -> dict[str, Any]:
         "identify.estimate_frf": identify.estimate_frf,
         "identify.fit_static_map": lambda *a, **k: identify.fit_static_map(*a, progress=False, **k),
         "identify.build_virgin_curve": identify.build_virgin_curve,
+        "identify.fit_presliding": lambda *a, **k: identify.fit_presliding(*a, progress=False, **k),
         "loop.AxisData": loop.AxisData,
         "method": method,
         # The harness's own detectors are tested with these.
@@ -809,13 +810,15 @@ def _strategies() -> dict[str, Any]:
         t = t if not chance(draw, prof.hostile) else draw(array(n, record, prof))
         x = wave if not chance(draw, prof.hostile) else draw(array(n, record, prof))
         f = np.cos(np.linspace(0.0, 12.0, n)) if not chance(draw, prof.hostile) else draw(array(n, record, prof))
-        kind = draw(st.sampled_from(["frf", "static_map", "virgin", "axis_data"]))
+        kind = draw(st.sampled_from(["frf", "static_map", "virgin", "presliding", "axis_data"]))
         if kind == "frf":
             return call("identify.estimate_frf", t, f, x)
         if kind == "static_map":
             return call("identify.fit_static_map", x, f)
         if kind == "virgin":
             return call("identify.build_virgin_curve", t, x, f)
+        if kind == "presliding":
+            return call("identify.fit_presliding", t, x, f, max_blocks=draw(st.integers(1, 3)))
         return call("loop.AxisData", t, x, f, rotary=draw(param(st.booleans(), prof)))
 
     return {

@@ -59,7 +59,7 @@ def test_virgin_curve_masing_matches_analytic():
 def test_errors():
     t = np.arange(200) * 1e-3
     with pytest.raises(IdentificationError, match="turning points"):
-        fit_presliding(t, 1e-6 * t, np.zeros_like(t), progress=False)
+        fit_presliding(t, 1e-6 * t, np.sin(t), progress=False)
     with pytest.raises(InvalidInputError, match="n_blocks"):
         fit_presliding(t, np.sin(t), np.sin(t), n_blocks=0, progress=False)
 
@@ -85,3 +85,16 @@ def test_a_collapsed_block_set_is_refused_not_returned():
     res = fit_presliding(t, x, f, max_blocks=8, progress=False)
     k = np.array([res.value(f"k{i + 1}") for i in range(res.info["n_blocks"])])
     assert np.all(k > 1e3)
+
+
+@pytest.mark.parametrize("which", ["position", "force"])
+def test_a_record_that_never_changes_is_refused_before_the_fit(which):
+    t = np.arange(300) * 1e-3
+    x, F = 1e-6 * np.sin(2 * np.pi * 5 * t), 0.1 * np.cos(2 * np.pi * 5 * t)
+    if which == "position":
+        x = np.zeros_like(t)
+    else:
+        F = np.zeros_like(t)
+    for fit in (lambda: fit_presliding(t, x, F, progress=False), lambda: build_virgin_curve(t, x, F)):
+        with pytest.raises(IdentificationError, match=f"the {which} never changes"):
+            fit()

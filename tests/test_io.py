@@ -38,7 +38,8 @@ def test_reads_csv_and_mat(tmp_path):
         ("time,pos\n" + "\n".join(f"{i},{'nan' if i == 4 else i}" for i in range(20)), {"time": "time", "position": "pos"}, "non-finite value at row 4"),
         # finite, but squares and sums of them overflow: every fitted number would be nan
         ("time,pos\n" + "\n".join(f"{i},{i}e200" for i in range(20)), {"time": "time", "position": "pos"}, r"column 'pos' \(position\) reaches 1.9e\+201.*check its unit"),
-        ("time,pos\n" + "\n".join(f"{i}e-300,{i}" for i in range(20)), {"time": "time", "position": "pos"}, r"time steps down to 1e-300.*units of position and time"),
+        ("time,pos\n" + "\n".join(f"{i}e-100,{i}" for i in range(20)), {"time": "time", "position": "pos"}, r"time steps down to 1e-100.*units of position and time"),
+        ("time,pos\n" + "\n".join(f"{i},{i}e-300" for i in range(20)), {"time": "time", "position": "pos"}, r"column 'pos' \(position\) reaches only 1.9e-299.*underflow"),
     ],
 )
 def test_bad_files(tmp_path, content, mapping, match):

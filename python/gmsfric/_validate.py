@@ -45,16 +45,23 @@ def as_array(name: str, values: ArrayLike, *, min_len: int = 1) -> NDArray[np.fl
 #: amplify them, and beyond this the sums overflow and every fitted number comes out nan.
 MAX_SIGNAL_MAGNITUDE = float(np.sqrt(np.finfo(np.float64).max)) * 1e-7
 
+#: Smallest peak of a measured signal that is not zero throughout: below it, squares and noise
+#: estimates underflow to zero and the fits divide by them.
+MIN_SIGNAL_MAGNITUDE = 1.0 / MAX_SIGNAL_MAGNITUDE
+
 
 def within_fit_range(label: str, values: NDArray[np.float64], *, time_step: float | None = None,
                      error: type[InvalidInputError] = InvalidInputError) -> None:
-    """Raise ``error`` naming ``label`` when ``values`` exceed :data:`MAX_SIGNAL_MAGNITUDE`, or,
+    """Raise ``error`` naming ``label`` when ``values`` peak below :data:`MIN_SIGNAL_MAGNITUDE`
+    (without being zero throughout) or exceed :data:`MAX_SIGNAL_MAGNITUDE`, or,
     given the smallest ``time_step`` of a position, when the position over that step squared (the
     scale of its acceleration) does: no unit of a real axis gets there, so it is a wrong unit or a
     corrupt log, and the fits would only return nan."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         peak = np.float64(np.max(np.abs(values), initial=0.0))
         scaled = peak / np.square(np.float64(time_step)) if time_step is not None and peak else peak
+    if 0 < peak < MIN_SIGNAL_MAGNITUDE:
+        raise error(f"{label} reaches only {peak:.3g}, below {MIN_SIGNAL_MAGNITUDE:.1e} where the fits underflow; check its unit")
     if not scaled <= MAX_SIGNAL_MAGNITUDE:
         if time_step is None:
             raise error(f"{label} reaches {peak:.3g}, beyond {MAX_SIGNAL_MAGNITUDE:.1e} where the fits overflow; check its unit")
@@ -63,8 +70,8 @@ def within_fit_range(label: str, values: NDArray[np.float64], *, time_step: floa
 
 
 def measured_signal(name: str, values: ArrayLike, *, min_len: int = 1) -> NDArray[np.float64]:
-    """:func:`as_array` for a measured signal that a fit squares and sums: also refused beyond
-    :data:`MAX_SIGNAL_MAGNITUDE` (see :func:`within_fit_range`)."""
+    """:func:`as_array` for a measured signal that a fit squares and sums: also refused outside
+    :data:`MIN_SIGNAL_MAGNITUDE` to :data:`MAX_SIGNAL_MAGNITUDE` (see :func:`within_fit_range`)."""
     arr = as_array(name, values, min_len=min_len)
     within_fit_range(f"`{name}`", arr)
     return arr

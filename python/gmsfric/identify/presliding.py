@@ -113,7 +113,16 @@ def _record_si(t: ArrayLike, position: ArrayLike, force: ArrayLike, f: Mapping[s
     same_length("force", F, "time", t.size)
     if np.any(np.diff(t) <= 0):
         raise InvalidInputError("`time` must increase strictly")
+    _check_varies(x, F)
     return t * f["time"], x * f["position"], F * f["force"]
+
+
+def _check_varies(x: NDArray[np.float64], F: NDArray[np.float64]) -> None:
+    """A record whose position or force never changes has no hysteresis (and zero noise, which
+    the fit's weights would divide by)."""
+    for name, a in (("position", x), ("force", F)):
+        if np.ptp(a) == 0:
+            raise IdentificationError(f"the {name} never changes: no pre-sliding hysteresis to fit")
 
 
 # ----------------------------------------------------------------------------- 2. resolution, reversals
@@ -246,6 +255,7 @@ def build_virgin_curve(
     F = measured_signal("force", force)
     same_length("position", x, "time", t.size)
     same_length("force", F, "time", t.size)
+    _check_varies(x, F)
     if resolution is None:
         resolution = estimate_resolution(x)
     resolution = positive("resolution", resolution)
