@@ -45,6 +45,12 @@ T = np.linspace(0, 1, 11)
         (lambda: g.simulate_closed_loop(presets.paper_plant(), None, presets.paper_pid(), np.zeros(10), 1e-3, load_force=np.full(10, np.nan)), "`load_force` has a non-finite value"),
         (lambda: g.simulate_closed_loop(presets.paper_plant(), None, presets.paper_pid(), np.zeros(10), 1e-3, quantization=-1.0), "`quantization` must be >= 0"),
         (lambda: g.Plant(1.0, 1.0, 1.0).simulate(np.ones(3), dt=0), "`dt` must be > 0"),
+        # numbers each finite whose combination overflows a double
+        (lambda: g.PID(-7.4e285, 0.0, 1e200, 1e100).to_control(), "PID's transfer function \\(kp = -7.4e\\+285.*overflows a double"),
+        (lambda: g.Plant(0.00084, 4.1e-18, 0.0, 9.99e225).to_control(pade_order=5), "Pade approximation \\(delay = 9.99e\\+225 s, order 5\\) overflows"),
+        (lambda: g.Plant(1.6e-150, 9e-222, 0.0, 1e6, 2.79e247).mass, "force_gain / a = 2.79e\\+247 / 1.6e-150 overflows"),
+        (lambda: g.model_io.model_from_dict({**g.AxisModel(presets.paper_plant(), presets.paper_gms()).model_document(), "provenance": np.array([])}),
+         "\"provenance\" must be an object, got an array"),
         # finite measured signals whose squares overflow the fits' sums (a wrong unit or a corrupt log)
         (lambda: g.identify.estimate_frf(np.arange(256) * 1e-3, np.ones(256) * 1e200, np.ones(256)), "`input` reaches 1e\\+200.*check its unit"),
         (lambda: g.identify.fit_static_map(np.linspace(-1, 1, 20), np.full(20, 1e160)), "`force` reaches 1e\\+160"),

@@ -508,10 +508,12 @@ def _decode_axis(p: Any) -> AxisModel:
     from .model_io import _KINDS, ModelFormatError, Parameters
 
     doc = p.document
-    options = doc.get("options", {}) or {}
+    options = doc.get("options")
+    options = {} if options is None else options
     if not isinstance(options, Mapping):
         raise ModelFormatError(f"{p.source}: \"options\" must be an object, got {show(options)}")
-    provenance = doc.get("provenance", {}) or {}
+    provenance = doc.get("provenance")
+    provenance = {} if provenance is None else provenance
     if not isinstance(provenance, Mapping):
         raise ModelFormatError(f"{p.source}: \"provenance\" must be an object, got {show(provenance)}")
     rotary = p.rotary

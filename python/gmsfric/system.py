@@ -39,6 +39,15 @@ def _control_module() -> Any:
     return control
 
 
+def _finite_transfer_function(tf: Any, what: str) -> Any:
+    """``tf`` when every coefficient is finite; else ``InvalidInputError`` naming ``what``
+    (parameters each finite whose products overflow a double)."""
+    coefficients = [np.asarray(c, dtype=float) for part in (tf.num, tf.den) for row in part for c in row]
+    if not all(np.isfinite(c).all() for c in coefficients):
+        raise InvalidInputError(f"{what} overflows a double")
+    return tf
+
+
 @dataclass(frozen=True)
 class Plant(NativeBacked):
     """``Y(s)/U(s) = a / (s^2 + b s + c) * exp(-s delay)`` (paper eq. 1), SI units.
@@ -91,7 +100,10 @@ class Plant(NativeBacked):
     @property
     def mass(self) -> float:
         """Equivalent moving mass ``force_gain / a`` (kg; kg m^2 for a rotary axis)."""
-        return self.force_gain / self.a
+        mass = self.force_gain / self.a
+        if not np.isfinite(mass):
+            raise InvalidInputError(f"the mass force_gain / a = {self.force_gain:g} / {self.a:g} overflows a double")
+        return mass
 
     def frequency_response(self, f: ArrayLike, dt: float | None = None) -> NDArray[np.complex128]:
         """Complex response at frequencies ``f`` (Hz), delay included.
@@ -169,8 +181,10 @@ class Plant(NativeBacked):
         order = count("pade_order", pade_order, minimum=1, maximum=10)
         if self.delay < 1e-9:
             raise InvalidInputError(f"a Pade approximation of a {self.delay:g} s delay puts poles beyond 1e9 rad/s; drop the delay or use dt=")
-        num, den = control.pade(self.delay, order)
-        return tf * control.tf(num, den)
+        with np.errstate(over="ignore", invalid="ignore"):
+            num, den = control.pade(self.delay, order)
+            delayed = tf * control.tf(num, den)
+        return _finite_transfer_function(delayed, f"the plant's Pade approximation (delay = {self.delay:g} s, order {order})")
 
     @classmethod
     def from_control(cls, tf: Any, delay: float = 0.0, force_gain: float = 1.0) -> "Plant":
@@ -266,7 +280,9 @@ class PID(NativeBacked):
             num, den = self._discrete_polynomials(dt)
             return control.tf(num, den, step("dt", dt))
         s = control.tf("s")
-        return self.kp + self.ki / s + self.kd * s / (self.tf * s + 1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            tf = self.kp + self.ki / s + self.kd * s / (self.tf * s + 1)
+        return _finite_transfer_function(tf, f"the PID's transfer function (kp = {self.kp:g}, ki = {self.ki:g}, kd = {self.kd:g}, tf = {self.tf:g})")
 
 
 @dataclass(frozen=True)
