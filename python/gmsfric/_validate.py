@@ -58,7 +58,8 @@ def within_fit_range(label: str, values: NDArray[np.float64], *, time_step: floa
     scale of its acceleration) does: no unit of a real axis gets there, so it is a wrong unit or a
     corrupt log, and the fits would only return nan."""
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        peak = np.float64(np.max(np.abs(values), initial=0.0))
+        # the callers have refused NaN already; max and min borrow the array, abs would copy it
+        peak = np.float64(max(float(values.max()), -float(values.min()), 0.0)) if values.size else np.float64(0.0)
         scaled = peak / np.square(np.float64(time_step)) if time_step is not None and peak else peak
     if 0 < peak < MIN_SIGNAL_MAGNITUDE:
         raise error(f"{label} reaches only {peak:.3g}, below {MIN_SIGNAL_MAGNITUDE:.1e} where the fits underflow; check its unit")

@@ -214,16 +214,17 @@ def estimate_frf(
     # ratios that do not depend on either scale, and extreme units or rates cannot then
     # underflow or overflow the spectra.
     s_ref, s_u, s_y = (float(np.max(np.abs(a))) or 1.0 for a in (ref, u, y))
+    ref_n, y_n = ref / s_ref, y / s_y
     kw = dict(fs=1.0, nperseg=nperseg, detrend=detrend, window="hann")
-    f, p_rr = signal.welch(ref / s_ref, **kw)
+    f, p_rr = signal.welch(ref_n, **kw)
     f = f * fs
-    _, p_yy = signal.welch(y / s_y, **kw)
-    _, p_ry = signal.csd(ref / s_ref, y / s_y, **kw)
+    _, p_yy = signal.welch(y_n, **kw)
+    _, p_ry = signal.csd(ref_n, y_n, **kw)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if excitation is None:
             H = p_ry / p_rr * (s_y / s_u)
         else:
-            _, p_ru = signal.csd(ref / s_ref, u / s_u, **kw)
+            _, p_ru = signal.csd(ref_n, u / s_u, **kw)
             H = p_ry / p_ru * (s_y / s_u)
         coh = np.nan_to_num(np.abs(p_ry) ** 2 / (p_rr * p_yy), nan=0.0)
     n_avg = max(1, int((n - nperseg) // (nperseg // 2) + 1))
