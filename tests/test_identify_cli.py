@@ -144,9 +144,51 @@ def test_paper_replay_quick():
     assert models["plant"].force_gain == presets.paper_plant().force_gain
 
 
-def test_raw_static_map_refuses_a_time_unit_it_would_ignore(tmp_path, capsys):
+def _raw_run_csv(tmp_path):
+    rig = VirtualRig(presets.paper_plant(), presets.paper_gms(), presets.paper_pid(presets.PaperReading(drive_limit=1e3)), encoder=5e-7, force_noise=1e-3)
+    run = rig.constant_velocity_run(np.array([0.05, 0.1, 0.3, 1, 3, 8]) * 1e-3, min_travel=1e-4, max_travel=3e-3, seed=1)
+    return _csv(tmp_path / "run.csv", {"t": run["t"], "x": run["position"], "F": run["force"]})
+
+
+def test_raw_static_map_velocity_unit_only_changes_reporting(tmp_path):
+    """--velocity-unit alone never rescales the data: positions stay in --position-unit (m)."""
+    f = _raw_run_csv(tmp_path)
+    base = ["identify", "static-map", f, "--time", "t", "--position", "x", "--force", "F", "-q"]
+    assert main([*base, "--json", str(tmp_path / "si.json")]) == 0
+    assert main([*base, "--velocity-unit", "mm/s", "--json", str(tmp_path / "mm.json")]) == 0
+    assert main([*base, "--position-unit", "m", "--velocity-unit", "mm/s", "--json", str(tmp_path / "mm2.json")]) == 0
+    si, mm, mm2 = (json.loads((tmp_path / n).read_text()) for n in ("si.json", "mm.json", "mm2.json"))
+    assert mm["parameters"]["vs"]["value"] == pytest.approx(1e3 * si["parameters"]["vs"]["value"], rel=1e-9)
+    assert mm["parameters"]["vs"]["value"] == pytest.approx(mm2["parameters"]["vs"]["value"], rel=1e-12)
+    assert mm["units"]["vs"] == "mm/s"
+    # the SI model is the same whatever the reporting unit
+    assert mm["gmsfric_model"]["parameters"]["vs"]["value"] == pytest.approx(si["gmsfric_model"]["parameters"]["vs"]["value"], rel=1e-6)
+    assert mm["gmsfric_model"]["parameters"]["sigma"]["value"] == pytest.approx(si["gmsfric_model"]["parameters"]["sigma"]["value"], rel=1e-6)
+
+
+def test_raw_static_map_time_unit_with_velocity_unit_reads_the_time_in_it(tmp_path):
+    f = tmp_path / "run_ms.csv"
+    rig = VirtualRig(presets.paper_plant(), presets.paper_gms(), presets.paper_pid(presets.PaperReading(drive_limit=1e3)), encoder=5e-7, force_noise=1e-3)
+    run = rig.constant_velocity_run(np.array([0.05, 0.1, 0.3, 1, 3, 8]) * 1e-3, min_travel=1e-4, max_travel=3e-3, seed=1)
+    _csv(f, {"t": run["t"] * 1e3, "x": run["position"] * 1e3, "F": run["force"]})
+    out = tmp_path / "o.json"
+    assert main(["identify", "static-map", str(f), "--time", "t", "--position", "x", "--force", "F", "--position-unit", "mm", "--time-unit", "ms",
+                 "--velocity-unit", "mm/s", "--json", str(out), "-q"]) == 0
+    assert json.loads(out.read_text())["gmsfric_model"]["parameters"]["vs"]["value"] == pytest.approx(presets.paper_gms().stribeck.vs, rel=0.1)
+
+
+def test_raw_static_map_refuses_a_velocity_unit_of_the_other_axis(tmp_path, capsys):
     f = tmp_path / "run.csv"
     f.write_text("t,x,F\n" + "\n".join(f"{i},{i},1" for i in range(60)))
-    code = main(["identify", "static-map", str(f), "--time", "t", "--position", "x", "--force", "F", "--velocity-unit", "mm/s", "--time-unit", "ms"])
-    assert code == 2
-    assert "--time-unit of a raw run goes with --position-unit" in capsys.readouterr().err
+    code = main(["identify", "static-map", str(f), "--time", "t", "--position", "x", "--force", "F", "--velocity-unit", "deg/s"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "--velocity-unit 'deg/s'" in err and "--position-unit 'm'" in err and "force" not in err
+
+
+def test_a_refused_unit_is_not_in_the_expected_list(tmp_path, capsys):
+    f = tmp_path / "run.csv"
+    f.write_text("t,x,F\n" + "\n".join(f"{i},{i},1" for i in range(60)))
+    code = main(["identify", "static-map", str(f), "--time", "t", "--position", "x", "--force", "F", "--position-unit", "deg"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--force-unit" in err and "expected N m" in err and "expected N," not in err and "force_unit" not in err

@@ -96,3 +96,14 @@ def test_ratio_and_display():
 def test_unknown_quantity_is_an_error():
     with pytest.raises(InvalidInputError, match="unknown quantity"):
         units.to_si(1.0, "m", "lenght")
+
+
+@pytest.mark.parametrize("unit, quantity, rotary, expected", [
+    ("N", "force", True, "expected N m "), ("N m", "force", False, "expected N, mN or kN "),
+    ("m", "position", True, "expected rad or deg "), ("rad", "position", False, "expected m, mm or um"),
+    ("N/m", "stiffness", True, "expected N m/rad "),
+])
+def test_the_expected_units_of_one_axis_never_list_the_refused_unit(unit, quantity, rotary, expected):
+    with pytest.raises(UnitError) as info:
+        units.check(unit, quantity, rotary=rotary, name="u")
+    assert expected in str(info.value)

@@ -329,8 +329,26 @@ def check(unit: str, quantity: str, *, rotary: bool | None = None, name: str = "
         hint = ""
         if rotary is not None and (lin or rot):
             hint = f" (that is a {'linear' if lin else 'rotary'}-axis unit: mixing m and rad is not allowed)"
-        raise UnitError(f"`{name}`: unit {unit!r} ({what}) is not a {quantity.replace('_', ' ')} unit{axis}; expected {q.example}{hint}")
+        expected = q.example if rotary is None else _examples(q, rotary)
+        raise UnitError(f"`{name}`: unit {unit!r} ({what}) is not a {quantity.replace('_', ' ')} unit{axis}; expected {expected}{hint}")
     return u
+
+
+@lru_cache(maxsize=128)
+def _examples(q: Quantity, rotary: bool) -> str:
+    """The examples of ``q`` that fit one axis kind ("N m" for a rotary force, never "N")."""
+    dims = q.rotary if rotary else q.linear
+    keep = []
+    for text in re.split(r",\s*|\s+or\s+", q.example):
+        text = re.sub(r"\s+\(.*?\)$", "", text).strip()
+        try:
+            if text and parse(text).dim in dims:
+                keep.append(text)
+        except UnitError:
+            continue
+    if not keep:
+        keep = [q.si_rotary if rotary else q.si_linear]
+    return keep[0] if len(keep) == 1 else f"{', '.join(keep[:-1])} or {keep[-1]}"
 
 
 def is_rotary(unit: str, quantity: str, *, name: str = "unit") -> bool:

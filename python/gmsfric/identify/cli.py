@@ -51,8 +51,9 @@ def register(subparsers: Any) -> None:
     s.add_argument("--per-direction", action="store_true", help="also fit each direction on its own")
     s.add_argument("--bootstrap", type=non_negative_int, default=0, metavar="N", help="bootstrap resamples for a second standard error")
     s.add_argument("--velocity-unit", default=None,
-                   help="unit of the velocity column (table mode, default m/s), or of the reported velocities (raw run: default position unit / time unit)")
-    s.add_argument("--position-unit", default=None, help="unit of the position column (raw run, default m), e.g. mm, um, rad")
+                   help="table mode: unit of the velocity column (default m/s); raw run: only the unit the velocities are reported in "
+                   "(default position unit / time unit), the data are read in --position-unit and --time-unit")
+    s.add_argument("--position-unit", default=None, help="unit of the position column (raw run, default m), e.g. mm, um, rad, deg")
     s.add_argument("--time-unit", default="s", help="unit of the time column (raw run), e.g. s, ms")
     s.set_defaults(func=_static_map)
 
@@ -136,20 +137,19 @@ def _static_map(args: argparse.Namespace, run: Run) -> int:
     if not raw and args.position_unit is not None:
         raise DataError("--position-unit goes with a raw run (--time and --position)")
     force_col = {"force": args.force} if args.command_col is None else {"command": args.command_col}
-    if raw and args.position_unit is None and args.velocity_unit is not None and args.time_unit != "s":
-        # with --velocity-unit alone the run is read in that unit's length and time: a time unit
-        # given beside it would be ignored, so it is refused
-        raise DataError("--time-unit of a raw run goes with --position-unit; with --velocity-unit alone the time is that unit's (give --position-unit instead)")
     if raw:
-        pos_unit = args.position_unit or ("m" if args.velocity_unit is None else None)
-        units = {"time": args.time_unit, "force": args.force_unit, **({"position": pos_unit} if pos_unit else {})}
-        if args.velocity_unit is not None:
-            units["velocity"] = args.velocity_unit
-        # every unit checked before the file is read
-        if pos_unit is not None:
-            _units.check(args.time_unit, "time", name="--time-unit")
-            _units.check(pos_unit, "position", name="--position-unit")
-        static_map_units(args.velocity_unit or _units.ratio(pos_unit or "m", args.time_unit), args.force_unit)
+        # The data's units come only from the data-unit flags (position default m, time default
+        # s); --velocity-unit only chooses the unit velocities are reported in.
+        pos_unit = "m" if args.position_unit is None else args.position_unit
+        _units.check(args.time_unit, "time", name="--time-unit")
+        rotary = _units.is_rotary(pos_unit, "position", name="--position-unit")
+        vel_unit = args.velocity_unit or _units.ratio(pos_unit, args.time_unit)
+        if _units.is_rotary(vel_unit, "velocity", name="--velocity-unit") != rotary:
+            raise _units.UnitError(f"--velocity-unit {vel_unit!r} (the reporting unit) and --position-unit {pos_unit!r} (the data's unit"
+                                   f"{', the default' if args.position_unit is None else ''}) are of different axes: "
+                                   "an angle is never a length; give both for the same axis")
+        _units.check(args.force_unit, "force", rotary=rotary, name="--force-unit")
+        units = {"time": args.time_unit, "force": args.force_unit, "position": pos_unit, "velocity": vel_unit}
         table = read_table(args.file)
         columns = {"time": args.time, "position": args.position, **force_col}
         cols = load_columns(table, columns, min_samples=50)
@@ -157,9 +157,11 @@ def _static_map(args: argparse.Namespace, run: Run) -> int:
             warnings.simplefilter("ignore", FitWarning)
             res = fit_static_map_from_run(cols["time"], cols["position"], _forces(args, table, cols), per_direction=args.per_direction,
                                           bootstrap=args.bootstrap, position_unit=pos_unit, time_unit=args.time_unit,
-                                          velocity_unit=args.velocity_unit, force_unit=args.force_unit, progress=run.progress)
+                                          velocity_unit=vel_unit, force_unit=args.force_unit, progress=run.progress)
     else:
         vel_unit = args.velocity_unit or "m/s"
+        rotary = _units.is_rotary(vel_unit, "velocity", name="--velocity-unit")
+        _units.check(args.force_unit, "force", rotary=rotary, name="--force-unit")
         static_map_units(vel_unit, args.force_unit)
         units = {"velocity": vel_unit, "force": args.force_unit}
         table = read_table(args.file)
