@@ -2,9 +2,10 @@
 
 import numpy as np
 import pytest
+from scipy import signal
 
 from gmsfric import PID, Plant, presets
-from gmsfric.errors import IdentificationError
+from gmsfric.errors import FitWarning, IdentificationError
 from gmsfric.identify import VirtualRig, estimate_frf, fit_plant, plant_to_control, revise_plant
 
 TRUE_KEYS = ("a", "b", "c", "delay")
@@ -122,3 +123,55 @@ def test_the_frf_does_not_depend_on_the_units_of_time_and_amplitude(t_scale, u_s
     np.testing.assert_allclose(scaled.f, ref.f / t_scale, rtol=1e-12)
     np.testing.assert_allclose(scaled.H, ref.H * (y_scale / u_scale), rtol=1e-9)
     np.testing.assert_allclose(scaled.coherence, ref.coherence, rtol=1e-9, atol=1e-12)
+
+
+def test_long_delay_with_the_phase_wrapping_many_times_is_found():
+    """A delay of 20 samples, about nine periods of the highest coherent bin (the phase wraps nine
+    times over the band): the search covers every whole number of delay samples the bin spacing
+    can tell apart, so the fit finds the global optimum, not one a few periods short."""
+    plant = Plant(a=2.0e7, b=2.3e4, c=2.1e7, delay=1.93e-3)  # overdamped, poles near 150 Hz and 3.5 kHz
+    rig = VirtualRig(plant, None, None, dt=1e-4, position_noise=1e-6)
+    d = rig.noise_test(6.0, 1.0, (50.0, 4500.0), seed=3)
+    res = fit_plant(estimate_frf(d["t"], d["input"], d["output"]))
+    assert plant.delay * res.info["band"][1] > 8.0
+    for k, v in _truth(plant).items():
+        assert res.value(k) == pytest.approx(v, rel=1e-3)
+    assert not [x for x in res.diagnostics if x["code"] in ("chi2", "at_bound")]
+
+
+def _paper_noise_test(seed: int) -> tuple[Plant, dict]:
+    plant = presets.paper_plant()
+    rig = VirtualRig(plant, None, None, dt=5e-4, position_noise=2e-7)
+    return plant, rig.noise_test(20.0, 5.0, (0.5, 300.0), seed=seed)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_chi2_is_near_one_for_the_right_model_and_large_for_a_wrong_delay(seed):
+    """The bins' noise comes from the measurement, not from the fitted model's residual: the right
+    model has chi2/dof near 1, a model held at half the delay is flagged by chi2 (FitWarning and
+    a diagnostic) and its standard errors are not widened to cover the misfit."""
+    plant, d = _paper_noise_test(seed)
+    frf = estimate_frf(d["t"], d["input"], d["output"])
+    right = fit_plant(frf, fmin=1.0, fmax=300.0)
+    assert 0.7 < right.info["chi2_per_dof"] < 1.5
+    assert not [x for x in right.diagnostics if x["code"] == "chi2"]
+    with pytest.warns(FitWarning, match="chi2/dof"):
+        wrong = fit_plant(frf, fmin=1.0, fmax=300.0, fit_delay=False, delay=0.5 * plant.delay)
+    assert wrong.info["chi2_per_dof"] > 20.0
+    assert [x for x in wrong.diagnostics if x["code"] == "chi2"]
+    for k in ("a", "b", "c"):
+        assert wrong.stderr(k) < 2.0 * right.stderr(k)
+
+
+def test_chi2_flags_data_from_a_plant_with_an_extra_resonance():
+    """A lightly damped mode (zeta 0.02 over 0.1 at 120 Hz) the model does not have: chi2 flags it."""
+    plant, d = _paper_noise_test(1)
+    dt = 5e-4
+    w0 = 2 * np.pi * 120.0
+    num, den, _ = signal.cont2discrete(([1.0, 2 * 0.1 * w0, w0**2], [1.0, 2 * 0.02 * w0, w0**2]), dt, method="bilinear")
+    y = signal.lfilter(np.ravel(num), den, plant.simulate(d["input"], dt)[1])
+    y = y + 2e-7 * np.random.default_rng(1).standard_normal(y.size)
+    with pytest.warns(FitWarning, match="chi2/dof"):
+        res = fit_plant(estimate_frf(d["t"], d["input"], y), fmin=1.0, fmax=300.0)
+    assert res.info["chi2_per_dof"] > 1e3  # not capped by a noise level taken from the misfit
+    assert [x for x in res.diagnostics if x["code"] == "chi2"]

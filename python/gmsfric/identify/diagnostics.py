@@ -123,9 +123,12 @@ def check_stderr(findings: Findings, parameters: Mapping[str, tuple[float, float
             findings.add("stderr", f"{name}: standard error {se / abs(value):.0%} of the value", name)
 
 
-def check_chi2(findings: Findings, chi2: float, dof: int, *, what: str = "", low: float | None = 0.5, high: float = 2.0) -> None:
+def check_chi2(findings: Findings, chi2: float, dof: int, *, what: str = "", low: float | None = 0.5, high: float = 2.0,
+               rescaled: bool = True) -> None:
     """Flag chi2/dof far from 1: significant (p < 1e-3 either side) and outside ``[low, high]``
-    (``low=None``: only a large chi2, when the noise level was estimated from the residual)."""
+    (``low=None``: only a large chi2, when the noise level was estimated from the residual or may
+    be overestimated); ``rescaled``: whether the fit scales its standard errors by chi2/dof (the
+    message says so)."""
     if dof < 1 or not np.isfinite(chi2):
         return
     ratio = chi2 / dof
@@ -133,7 +136,8 @@ def check_chi2(findings: Findings, chi2: float, dof: int, *, what: str = "", low
     p_low = float(stats.chi2.cdf(chi2, dof))
     if ratio > high and p_high < 1e-3:
         findings.add("chi2", f"chi2/dof = {ratio:.3g}{what}: the residual is larger than the noise the fit assumes "
-                             "(wrong model, unmodelled effects or too small a noise estimate); the standard errors are rescaled by it")
+                             "(wrong model, unmodelled effects or too small a noise estimate); "
+                             + ("the standard errors are rescaled by it" if rescaled else "the estimates and their standard errors are not to be trusted"))
     elif low is not None and ratio < low and p_low < 1e-3:
         findings.add("chi2", f"chi2/dof = {ratio:.3g}{what}: the residual is smaller than the stated noise (noise overestimated)")
 

@@ -8,8 +8,10 @@ joint input-output estimate), unbiased by measurement noise fed back through the
 squares.  Each bin's complex error is divided by the standard deviation of the H1 estimate,
 ``|H| sqrt((1 - gamma^2) / (2 n_avg gamma^2))`` (Bendat & Piersol), so coherence weights the
 fit and the residuals are ~unit variance.  Start values need not be given: a linear
-(Levy) least-squares fit of ``H (s^2 + b s + c) = a exp(-s tau)`` is solved on a grid of delays and
-the best one starts the nonlinear fit.
+(Levy) least-squares fit of ``H (s^2 + b s + c) = a exp(-s tau)`` is solved on a grid of delays,
+and the exact sampled model's linear fit for every whole number of delay samples the bin spacing
+can resolve; the best of each start the nonlinear fit.  The bins' noise always comes from the
+measurement (never from the fitted model's residual), so chi2 shows a misfit.
 """
 
 from __future__ import annotations
@@ -306,8 +308,8 @@ def fit_plant(
     min_coherence : float
         Bins below this coherence are left out.
     max_delay : float, optional
-        Upper end of the delay search (time unit); default two periods of the highest fitted
-        frequency.
+        Upper end of the delay search (time unit); default what the phases of adjacent fitted
+        bins can tell apart, ``0.5 / min(diff(f))``.
     fit_delay : bool
         Fit the delay (else hold it at ``delay``, time unit).
     force_gain : float, optional
@@ -353,13 +355,22 @@ def fit_plant(
         raise IdentificationError(f"only {f.size} frequency bins with coherence >= {min_coherence} in the band: need at least 8 (more excitation or a longer record)")
     sd = np.maximum(sd, 1e-12 * np.abs(H))
     T = sel.dt * kt if zoh else 0.0
-    q, r = _fit_plant_si(f, H, sd, T, fit_delay, float(delay) * kt, None if max_delay is None else float(max_delay) * kt)
+    q, r = _fit_plant_si(f, H, sd, T, fit_delay, float(delay) * kt, None if max_delay is None else float(max_delay) * kt, sel.dt * kt)
     if zoh and sel.record is not None:
         # the same fit against the model's FRF estimated exactly as the measured one (leakage)
         k_u = _units.factor(input_unit, "drive", name="input_unit")
         q, r = _refine_matched(q, r, sel.record, sel.f[m], H, sd, kt, k_u, k_h * k_u, fit_delay, float(delay) * kt)
     jac = r.jac if fit_delay else r.jac[:, :3]
-    cov = covariance_from_jacobian(jac, r.fun) * frf.bin_correlation
+    dof = max(2 * f.size - (4 if fit_delay else 3), 1)
+    chi2 = float(r.fun @ r.fun)
+    matched = zoh and sel.record is not None
+    # The bins' noise is the measurement's: the Jacobian covariance is scaled by chi2/dof only
+    # within the range a right model reaches (a larger chi2 is a misfit, flagged below, that
+    # wider error bars must not hide; the matched fit's noise may only be overestimated, where
+    # leakage dominates, so it is not scaled down).
+    ratio = chi2 / dof if chi2 > 0 else 1.0
+    scale = float(np.clip(ratio, 1.0 if matched else 0.5, 2.0))
+    cov = covariance_from_jacobian(jac, r.fun) * (scale / ratio) * frf.bin_correlation
     se = np.sqrt(np.clip(np.diag(cov), 0, np.inf))
     a_si = float(np.exp(q[0]))
     tau_si = float(q[3]) if fit_delay else float(delay) * kt
@@ -381,10 +392,9 @@ def fit_plant(
             findings.add("at_bound", f"{name} is at its lower bound 0{what}", name)
     if fit_delay and upper_delay is not None:
         check_bounds(findings, "delay", tau_si, None, float(upper_delay), what=" (the delay search's end: give --fmax or a longer band)")
-    dof = max(2 * f.size - (4 if fit_delay else 3), 1)
-    chi2 = float(r.fun @ r.fun)
-    # with the record, the bins' noise comes from the fit's own residual: only a large chi2 means something
-    check_chi2(findings, chi2, dof, what=" of the FRF fit", low=None if (zoh and sel.record is not None) else 0.5)
+    # with the record, leakage can make the bins' noise an overestimate: only a large chi2 means something
+    check_chi2(findings, chi2, dof, what=" of the FRF fit",
+               low=None if matched else 0.5, rescaled=False)
     check_stderr(findings, {k: (values_si[k], se_si[k]) for k in PLANT_NAMES}, skip={k for k in PLANT_NAMES if values_si[k] == 0.0})
     fn = np.sqrt(values_si["c"]) / (2 * np.pi)
     if values_si["c"] > 0 and fn < f.min() / 10:
@@ -471,15 +481,13 @@ def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: ND
         if sol is None or cand.cost < sol.cost:
             sol = cand
     assert sol is not None
-    # the bins' standard deviation from the output noise the fitted model leaves, v = y - P u
-    # simulated in the time domain (a per-bin difference of spectra is swamped by leakage where
-    # the response is large): var(H) = S_rr S_vv / (n |S_ru|^2), n the number of segments
+    # The bins' standard deviation from the measurement, not from the fitted model's residual (a
+    # wrong model would widen its own error bars and hide its misfit): the output power not
+    # coherent with the reference, less the part window leakage alone leaves incoherent (the
+    # noise-free model's output through the same segments; it cancels in this comparison).  The
+    # model can only lower it, never below a floor, and never above the coherence bound.
     y_fit = simulate_batch(plants([sol.x]), None, None, None, dt_si, feedforward=u_si, record=("position",), threads=1, progress=False).position
-    V = welch.spectra(record.output[None, :] * k_y - y_fit)[0]
-    n_seg = V.shape[0]
-    S_vv, S_rr = np.mean(np.abs(V) ** 2, axis=0), np.mean(np.abs(welch.R) ** 2, axis=0)
-    sd_noise = np.sqrt(S_rr * S_vv / (2 * n_seg * np.abs(welch.S_ru / n_seg) ** 2))
-    sd[:] = np.maximum(sd_noise, 1e-9 * np.abs(H_meas))
+    sd[:] = _matched_stderr(welch, record.output * k_y, y_fit[0], H_meas)
     sol = least_squares(resid, sol.x, jac=jac, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=20)
     q = np.concatenate([sol.x, q0[n_q:]])
     sol.bounds_hi = r0.bounds_hi
@@ -488,34 +496,163 @@ def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: ND
     return q, sol
 
 
-def _fit_plant_si(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, fit_delay: bool, delay: float,
-                  max_delay: float | None) -> tuple[NDArray[np.float64], Any]:
-    """NLS of ``(log a, b, c, delay)`` on the SI FRF, started from Levy's linear fit on a grid of
-    delays (the three best starts polished).
+def _matched_stderr(welch: _WelchRatio, y: NDArray[np.float64], y_model: NDArray[np.float64], H: NDArray[np.complex128]) -> NDArray[np.float64]:
+    """Standard deviation of the real (and imaginary) part of the Welch ratio at each bin from the
+    output noise, ``var(H) = S_rr E / (n |S_ru|^2)`` with ``E`` the output power incoherent with
+    the reference ``r`` (Bendat & Piersol).  ``E`` is the measured one less that of ``y_model``
+    (leakage, the same for model and data), at least ``E / n`` (``n`` segments: about the scatter
+    of that difference where leakage dominates)."""
+    R = welch.R
+    n = R.shape[0]
+    S_rr = np.mean(np.abs(R) ** 2, axis=0)
 
-    Without ``max_delay`` the search spans two periods of the highest fitted bin; a delay found at
-    its end is not a result (coherent bins far above the excitation band make that span short),
-    so the span doubles, at the same grid resolution, until the delay lies inside it or reaches
-    what the phases of adjacent bins can tell apart."""
-    span = 2.0 / f.max() if max_delay is None else max_delay
-    limit = 0.5 / float(np.min(np.diff(f))) if f.size > 1 else span
-    for _ in range(24):  # 2**24 periods: far beyond any bin spacing; bounds the work on pure noise
-        x, best = _fit_plant_delay_span(f, H, sd, T, fit_delay, delay, span)
-        at_end = fit_delay and x[3] >= 0.99 * best.bounds_hi[3]
-        if max_delay is not None or not at_end or not 2.0 * span <= limit:
-            break
-        span *= 2.0
-    return x, best
+    def incoherent(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        X = welch.spectra(x[None, :])[0]
+        return np.maximum(np.mean(np.abs(X) ** 2, axis=0) - np.abs(np.mean(np.conj(R) * X, axis=0)) ** 2 / S_rr, 0.0)  # type: ignore[no-any-return]
+
+    e_meas = incoherent(y) * n / max(n - 1, 1)  # one complex coefficient per bin fitted away
+    e_leak = incoherent(y_model) * n / max(n - 1, 1)
+    e_noise = np.clip(e_meas - e_leak, e_meas / n, e_meas)
+    sd = np.sqrt(S_rr * e_noise / (2 * n * np.abs(welch.S_ru / n) ** 2))
+    return np.maximum(sd, 1e-9 * np.abs(H))  # type: ignore[no-any-return]
+
+
+def _fit_plant_si(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, fit_delay: bool, delay: float,
+                  max_delay: float | None, dt_data: float = 0.0) -> tuple[NDArray[np.float64], Any]:
+    """NLS of ``(log a, b, c, delay)`` on the SI FRF from the best starts of two searches.
+
+    * Levy's continuous linear fit on a grid of delays over two periods of the highest bin (or
+      ``max_delay``), as the paper would start it.
+    * The exact sampled model's linear fit for every whole number of delay samples up to
+      ``max_delay`` or, without it, to what the phases of adjacent bins can tell apart
+      (``0.5 / min(diff(f))``): the cost has a local minimum every period of the highest bin, so
+      only a search over the whole plausible range finds the global one; a continuous fit cannot
+      serve there, as the sampled response departs from it near the Nyquist frequency.
+    """
+    limit = 0.5 / float(np.min(np.diff(f))) if f.size > 1 else 2.0 / f.max()
+    span = min(2.0 / f.max(), limit) if max_delay is None else max_delay
+    upper = max(span, limit) if max_delay is None else max_delay
+    dt_s = dt_data if dt_data > 0 else T
+    extra: list[tuple[float, NDArray[np.float64]]] = []
+    if fit_delay and dt_s > 0:
+        extra = _sampled_starts(f, H, sd, T, dt_s, upper)
+    return _fit_plant_delay_span(f, H, sd, T, fit_delay, delay, span, extra, max(upper, span))
+
+
+def _sampled_starts(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, dt: float, max_delay: float,
+                    n_keep: int = 6) -> list[tuple[float, NDArray[np.float64]]]:
+    """Starts ``(cost, (log a, b, c, delay))`` from the linear fit of the ZOH-sampled plant,
+    ``H (1 + d1 w + d2 w^2) = w^(m+1) (n0 + n1 w + n2 w^2)`` with ``w = exp(-s dt)``, exact for a
+    delay of ``m`` to ``m + 1`` samples, solved for every ``m`` up to ``max_delay / dt`` at once.
+
+    The ``n_keep`` best local minima over ``m`` are refined by Sanathanan-Koerner iterations
+    (reweighting by the fitted denominator), mapped to ``b, c`` through the poles, and the
+    fractional delay and ``a`` are profiled on the model the fit uses (``T``: 0 continuous)."""
+    m_max = int(min(max_delay / dt, 20000))
+    g2 = 1.0 / sd**2  # the equation error is the model error times the denominator: reweighted below
+    phase = 2 * np.pi * f * dt
+    w = np.exp(-1j * phase)
+    # S(p) = sum g^2 conj(H) w^p, p = -2 .. m_max + 3
+    p_all = np.arange(-2, m_max + 4)
+    v = g2 * np.conj(H)
+    S = np.empty(p_all.size, dtype=complex)
+    W = np.exp(-1j * np.outer(np.arange(min(512, p_all.size)), phase))  # w^k for a block of p, shifted by w^p0
+    for i0 in range(0, p_all.size, W.shape[0]):
+        k = min(W.shape[0], p_all.size - i0)
+        S[i0:i0 + k] = W[:k] @ (v * np.exp(-1j * p_all[i0] * phase))
+    Sp = lambda p: S[p + 2]  # noqa: E731
+    # m-independent blocks: equations H w^i (i = 1, 2), -w^(m+1+j) (j = 0..2), rhs -H
+    hh = g2 * np.abs(H) ** 2
+    F = np.array([[np.real(np.sum(hh * w ** (j - i))) for j in (1, 2)] for i in (1, 2)])
+    N = np.array([[np.real(np.sum(g2 * w ** (j - i))) for j in range(3)] for i in range(3)])
+    q_fixed = np.array([np.real(np.sum(hh * w ** i)) for i in (1, 2)])
+    c0 = float(np.sum(hh))
+    ms = np.arange(m_max + 1)
+    M = np.zeros((ms.size, 5, 5))
+    q = np.zeros((ms.size, 5))
+    M[:, :2, :2] = F
+    M[:, 2:, 2:] = N
+    for i in (1, 2):
+        for j in range(3):
+            x = -np.real(Sp(ms + 1 + j - i))
+            M[:, i - 1, 2 + j] = x
+            M[:, 2 + j, i - 1] = x
+    q[:, :2] = q_fixed
+    for j in range(3):
+        q[:, 2 + j] = -np.real(np.conj(Sp(ms + 1 + j)))
+    with np.errstate(all="ignore"):
+        try:
+            x = np.linalg.solve(M + 1e-12 * np.trace(M, axis1=1, axis2=2)[:, None, None] * np.eye(5), -q[..., None])[..., 0]
+        except np.linalg.LinAlgError:  # pragma: no cover
+            return []
+        cost = c0 + np.einsum("ki,ki->k", q, x)
+    cost = np.where(np.isfinite(cost), cost, np.inf)
+    # local minima over m, best first
+    mins = [k for k in range(ms.size) if (k == 0 or cost[k] <= cost[k - 1]) and (k == ms.size - 1 or cost[k] <= cost[k + 1])]
+    mins = sorted(mins, key=lambda k: cost[k])[:n_keep]
+    out = []
+    for k in mins:
+        m = int(ms[k])
+        cols = np.stack([H * w, H * w**2, -w ** (m + 1), -w ** (m + 2), -w ** (m + 3)], axis=1)
+        g = np.sqrt(g2)
+        sol = x[k]
+        for _ in range(4):  # Sanathanan-Koerner: the equation error divided by the last denominator
+            den = np.abs(1 + sol[0] * w + sol[1] * w**2)
+            gk = g / np.maximum(den, 1e-12 * den.max() + 1e-300)
+            A = cols * gk[:, None]
+            try:
+                sol, *_ = np.linalg.lstsq(np.concatenate([A.real, A.imag]), np.concatenate([(-H * gk).real, (-H * gk).imag]), rcond=None)
+            except np.linalg.LinAlgError:  # pragma: no cover
+                break
+        start = _continuous_from_sampled(f, H, sd, T, dt, m, sol[0], sol[1])
+        if start is not None:
+            out.append(start)
+    return out
+
+
+def _continuous_from_sampled(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, dt: float, m: int,
+                             d1: float, d2: float) -> tuple[float, NDArray[np.float64]] | None:
+    """``b, c`` from the poles of ``z^2 + d1 z + d2`` (``s = log(z) / dt``), then the delay in
+    ``[m dt, (m + 1) dt]`` and ``a`` (linear, closed form) that fit best: ``(cost, q)``."""
+    z = np.roots([1.0, d1, d2]).astype(complex)
+    if np.any(np.abs(z) == 0) or not np.all(np.isfinite(z)):
+        return None
+    s = np.log(z) / dt
+    b, c = max(float(-np.real(s[0] + s[1])), 0.0), max(float(np.real(s[0] * s[1])), 0.0)
+    best = None
+    hold = 0.5 * dt if T == 0 else 0.0  # a continuous fit lumps the hold into the delay
+    for e in np.linspace(0.0, 1.0, 11):
+        tau = (m + e) * dt + hold
+        try:
+            G = plant_response(f, 1.0, b, c, tau, T)
+        except (InvalidInputError, SimulationError, ValueError):
+            return None
+        wg = G / sd
+        den = float(np.sum(np.abs(wg) ** 2))
+        if not np.isfinite(den) or den <= 0:
+            continue
+        a = float(np.real(np.sum(np.conj(wg) * H / sd))) / den
+        if not a > 0:
+            continue
+        cost = float(np.sum(np.abs((a * G - H) / sd) ** 2))
+        if best is None or cost < best[0]:
+            best = (cost, np.array([np.log(a), b, c, tau]))
+    return best
 
 
 def _fit_plant_delay_span(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, fit_delay: bool, delay: float,
-                          max_delay: float) -> tuple[NDArray[np.float64], Any]:
+                          max_delay: float, extra: list[tuple[float, NDArray[np.float64]]] | None = None,
+                          upper: float | None = None) -> tuple[NDArray[np.float64], Any]:
     wrel = np.abs(H) / sd  # 1 / relative standard deviation
     H_levy = H / zoh_factor(f, T)
 
     def resid(q: NDArray[np.float64]) -> NDArray[np.float64]:
         tau = q[3] if fit_delay else delay
-        e = (plant_response(f, float(np.exp(q[0])), float(q[1]), float(q[2]), float(tau), T) - H) / sd
+        try:
+            e = (plant_response(f, float(np.exp(q[0])), float(q[1]), float(q[2]), float(tau), T) - H) / sd
+        except (InvalidInputError, SimulationError, OverflowError):
+            # a trial plant too fast for the step (or overflowing): far from the data
+            return np.full(2 * f.size, 1e6)
         return np.concatenate([e.real, e.imag])
 
     # 80 starts per period of the highest bin: the cost has a local minimum every period
@@ -533,10 +670,12 @@ def _fit_plant_delay_span(f: NDArray[np.float64], H: NDArray[np.complex128], sd:
         a0 = float(np.median(np.abs(H) * (2 * np.pi * f) ** 2))
         starts = [(0.0, np.array([np.log(max(a0, 1e-300)), 2 * np.pi * f.min(), 0.0, delay]))]
     starts.sort(key=lambda s: s[0])
+    extra = sorted(extra or [], key=lambda s: s[0])
     lo = np.array([-np.inf, 0.0, 0.0, 0.0])
-    hi = np.array([np.inf, np.inf, np.inf, max(max_delay * 1.5, 1e-12)])
+    hi = np.array([np.inf, np.inf, np.inf, max(1.5 * (max_delay if upper is None else upper), 1e-12)])
     best = None
-    for _, q0 in starts[:3]:
+    # the best continuous starts and the best sampled ones (either kind can mislead the other's ranking)
+    for _, q0 in starts[:3] + extra[:3]:
         q0 = np.clip(q0, lo, hi * (1 - 1e-9))
         if not fit_delay:
             q0[3] = 0.0
