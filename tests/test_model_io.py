@@ -33,12 +33,38 @@ def _rel(a, b):
 @pytest.mark.parametrize("model", MODELS, ids=lambda m: type(m).__name__)
 @pytest.mark.parametrize("rotary", [False, True])
 def test_every_kind_round_trips_exactly(model, rotary, tmp_path):
-    p = save_model(model, tmp_path / "m.json", rotary=rotary, provenance={"note": "test"})
+    model = dataclasses.replace(model, rotary=rotary)
+    p = save_model(model, tmp_path / "m.json", provenance={"note": "test"})
     doc = json.loads(p.read_text())
     assert doc["schema"] == "gmsfric.model/1" and doc["gmsfric_version"] == g.__version__
     assert doc["axis"] == ("rotary" if rotary else "linear") and doc["provenance"] == {"note": "test"}
     assert all(set(v) == {"value", "unit"} for v in doc["parameters"].values())
-    assert load_model(p) == model
+    back = load_model(p)
+    assert back == model and back.rotary is rotary
+    # saved again as loaded: the same document (the axis is never lost on the way)
+    again = json.loads(save_model(back, tmp_path / "m2.json", rotary=rotary, provenance={"note": "test"}).read_text())
+    assert again == doc
+
+
+@pytest.mark.parametrize("model", MODELS, ids=lambda m: type(m).__name__)
+def test_save_model_refuses_to_relabel_a_model_of_the_other_axis(model, tmp_path):
+    with pytest.raises(InvalidInputError, match="`rotary`=True would relabel `model`, a linear-axis model"):
+        save_model(model, tmp_path / "m.json", rotary=True)
+    with pytest.raises(InvalidInputError, match="`rotary`=False would relabel `model`, a rotary-axis model"):
+        save_model(dataclasses.replace(model, rotary=True), tmp_path / "m.json", rotary=False)
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_a_rotary_identification_gives_a_rotary_model_in_python_and_in_its_file(tmp_path):
+    v = np.concatenate([np.geomspace(0.01, 30, 14), -np.geomspace(0.01, 30, 14)])  # deg/s
+    F = static_map_curve(v, 0.2, 0.3, 0.5, 0.01, 1.0)
+    res = fit_static_map(v, F, velocity_unit="deg/s", force_unit="N m", progress=False)
+    assert res.model_object.rotary is True
+    p = tmp_path / "r.json"
+    p.write_text(res.to_json())
+    back = load_model(p)
+    assert isinstance(back, g.StaticFriction) and back.rotary is True and back == res.model_object
+    assert json.loads(save_model(back, tmp_path / "again.json").read_text())["parameters"]["fc"]["unit"] == "N m"
 
 
 def test_units_in_the_document_are_converted_and_checked(tmp_path):

@@ -66,7 +66,7 @@ def test_atomic_write_replaces_or_leaves_the_target(tmp_path):
             raise Boom
     assert target.read_text() == "new"  # untouched by the failed write
     assert sorted(os.listdir(tmp_path)) == ["out.json"]
-    with pytest.raises(IsADirectoryError):
+    with pytest.raises(ValueError, match="is a directory"):
         io.write_text_atomic(tmp_path, "x")
 
 

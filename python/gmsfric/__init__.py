@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from ._gmsfric import __version__
 from .axis import AxisModel, AxisUnits, Compliance, Covariance, Drift, Effects, Heating, PositionSeries
-from .errors import DataError, GmsfricError, IdentificationError, InvalidInputError, ResourceError, SimulationError
+from .errors import DataError, GmsfricError, IdentificationError, InvalidInputError, OutputPathError, ResourceError, SimulationError
 from .models import GMS, LuGre, MaxwellSlip, StaticFriction, Stribeck, simulate_friction
 from .model_io import load_model, save_model
 from .system import PID, PIDDOB, Cascade, ClosedLoopResult, Plant, RunOptions, simulate_closed_loop
@@ -54,6 +54,7 @@ __all__ = [
     "InvalidInputError",
     "SimulationError",
     "DataError",
+    "OutputPathError",
     "IdentificationError",
     *_SUBMODULES,
 ]

@@ -531,6 +531,9 @@ def _decode_axis(p: Any) -> AxisModel:
         }
         fp = Parameters(sub, f"{p.source} (friction)")
         friction = _KINDS[fkind].decode(fp)
+        if getattr(friction, "rotary", False):
+            # inside an axis model its units state the axis; its parts stay as the loop builds them
+            friction = dataclasses.replace(friction, rotary=False)
         fp.check_all_used()
         p.used.update(f"friction.{n}" for n in fp.used)
     kw: dict[str, Any] = {}

@@ -30,6 +30,7 @@ import math
 import os
 import shlex
 import sys
+import tempfile
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -251,13 +252,18 @@ class Run:
                 raise DataError(f"{what} {path} is the input file {inp}: refusing to overwrite it")
 
     def write_json(self, path: str | Path, result: "Result | Mapping[str, Any]") -> Path:
-        """Write a result's JSON (or a plain document) atomically to ``path``."""
+        """Write a result's JSON (or a plain document) atomically to ``path``; ``-`` is standard
+        output."""
         from .io import write_text_atomic
         from .results import dumps
 
+        text = result.to_json() if hasattr(result, "to_json") else dumps(result)
+        if str(path) == "-":  # standard output, for every command
+            sys.stdout.write(text + "\n")
+            sys.stdout.flush()
+            return Path("-")
         p = Path(path)
         self._guard(p, "output")
-        text = result.to_json() if hasattr(result, "to_json") else dumps(result)
         write_text_atomic(p, text + "\n")
         log.info("wrote %s", p)
         return p
@@ -274,19 +280,35 @@ class Run:
         return paths
 
 
-def _check_output_file(p: Path, option: str, inputs: Sequence[Path]) -> None:
-    if p.is_dir():
-        raise DataError(f"{option} {p}: is a directory; give a file name")
-    parent = p.parent
-    if not parent.exists():
-        raise DataError(f"{option} {p}: directory {parent} does not exist")
-    if not parent.is_dir():
-        raise DataError(f"{option} {p}: {parent} is not a directory")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise DataError(f"{option} {p}: cannot write in {parent} (permission denied)")
+def _check_output_file(p: Path, option: str, inputs: Sequence[Path], text: str | None = None) -> None:
+    from .errors import OutputPathError
+    from .io import check_output_path
+
+    given = str(p) if text is None else text
+    try:
+        check_output_path(given, name=option)
+    except OutputPathError as exc:
+        # the same message with the option as the user typed it (`--json`, not `path`)
+        raise DataError(str(exc).replace(f"`{option}`", option, 1)) from None
+    real = Path(os.path.realpath(p))
+    if real.exists() and not real.is_file():
+        # a device or a FIFO (``/dev/null``): written in place, never replaced, so the node itself
+        # must be writable, not its directory
+        if not os.access(real, os.W_OK):
+            raise DataError(f"{option} {given}: cannot write to it (permission denied)")
+    elif not os.access(real.parent, os.W_OK | os.X_OK):
+        raise DataError(f"{option} {given}: cannot write in {real.parent} (permission denied)")
+    else:
+        # the output is written beside its target and renamed over it: try that now, not after the work
+        try:
+            fd, name = tempfile.mkstemp(prefix=f".{real.name}.", suffix=".tmp", dir=real.parent)
+            os.close(fd)
+            os.unlink(name)
+        except OSError as exc:
+            raise DataError(f"{option} {given}: cannot create a file in {real.parent} ({exc.strerror or exc})") from None
     for inp in inputs:
         if _same_file(p, inp):
-            raise DataError(f"{option} {p} is the input file {inp}: refusing to overwrite it")
+            raise DataError(f"{option} {given} is the input file {inp}: refusing to overwrite it")
 
 
 def _check_output_dir(p: Path, option: str, inputs: Sequence[Path]) -> None:
@@ -321,7 +343,7 @@ def _prepare(args: argparse.Namespace, argv: list[str]) -> Run:
         v = getattr(args, dest, None)
         if v is None or (dest in files.stdout and v == "-"):
             continue
-        _check_output_file(Path(v), _option(dest), inputs)
+        _check_output_file(Path(v), _option(dest), inputs, text=v)
     for dest in files.output_dirs:
         v = getattr(args, dest, None)
         if v is not None:

@@ -18,6 +18,11 @@ class DataError(InvalidInputError):
     """A data file or table cannot be used: unknown column, empty, non-numeric, too short."""
 
 
+class OutputPathError(InvalidInputError):
+    """An output path that cannot receive a file: a directory (or a name ending in '/'), a
+    directory that does not exist, or no path at all.  Raised before any work."""
+
+
 class IdentificationError(GmsfricError, RuntimeError):
     """An identification could not produce a trustworthy result (too few points, no convergence)."""
 
@@ -28,4 +33,4 @@ class FitWarning(UserWarning):
     100 %, data that do not cover a parameter, saturated or closed-loop data."""
 
 
-__all__ = ["GmsfricError", "InvalidInputError", "SimulationError", "ResourceError", "DataError", "IdentificationError", "FitWarning"]
+__all__ = ["GmsfricError", "InvalidInputError", "SimulationError", "ResourceError", "DataError", "OutputPathError", "IdentificationError", "FitWarning"]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import os
+import stat
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._validate import within_fit_range
-from .errors import DataError
+from .errors import DataError, OutputPathError
 
 
 @dataclass
@@ -204,6 +205,40 @@ def _new_file_mode(target: Path) -> int:
     return 0o666 & ~umask
 
 
+def check_output_path(path: str | Path, *, name: str = "path") -> Path:
+    """Check that ``path`` can receive an output file before any work: a path (str or Path), not
+    a directory (nor a name ending in a separator), in an existing directory.  A symbolic link is
+    checked (and later written) through to its target.
+
+    Raises
+    ------
+    OutputPathError
+        Naming the argument ``name`` and the user's path.
+    """
+    if not isinstance(path, (str, os.PathLike)) or isinstance(path, bytes):
+        raise OutputPathError(f"`{name}` must be a path (str or pathlib.Path), got {type(path).__name__}")
+    text = os.fspath(path)
+    if not isinstance(text, str) or not text.strip():
+        raise OutputPathError(f"`{name}` must be a file name, got {text!r}")
+    p = Path(text)
+    if p.is_dir():
+        raise OutputPathError(f"`{name}` {text}: is a directory; give a file name")
+    if text.endswith(("/", os.sep)):
+        raise OutputPathError(f"`{name}` {text}: ends with '/', a directory name; give a file name")
+    real = Path(os.path.realpath(p)) if p.is_symlink() else p
+    parent = real.parent
+    if not parent.exists():
+        raise OutputPathError(f"`{name}` {text}: directory {parent} does not exist")
+    if not parent.is_dir():
+        raise OutputPathError(f"`{name}` {text}: {parent} is not a directory")
+    return p
+
+
+def _reraise_for(exc: OSError, target: Path) -> OSError:
+    """The same error naming the user's path, never a temporary file's."""
+    return type(exc)(exc.errno, exc.strerror or str(exc), str(target)) if exc.errno is not None else exc
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """A temporary path in the directory of ``path``; on success it is renamed over ``path``
@@ -211,28 +246,59 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
 
         with atomic_path("fig.png") as tmp:
             fig.savefig(tmp, format="png")
+
+    Only a regular file (or a new name) is replaced that way.  A symbolic link is written
+    through to the file it points to (the link stays); an existing target that is not a regular
+    file (``/dev/null``, a FIFO) is written directly, never replaced.
+
+    Raises
+    ------
+    OutputPathError
+        ``path`` is a directory, its directory does not exist, or no file can be created in it
+        (a ``ValueError``).
+    OSError
+        A write or rename error, naming ``path`` (never the temporary file).
     """
-    target = Path(path)
-    if target.is_dir():
-        raise IsADirectoryError(21, "is a directory", str(target))
-    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent if str(target.parent) else ".")
-    os.close(fd)
+    given = check_output_path(path)
+    target = Path(os.path.realpath(given)) if given.is_symlink() else given
+    if target.exists() and not target.is_file():
+        # a device or a FIFO: there is nothing to keep whole, and a rename would replace the node
+        yield target
+        return
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent if str(target.parent) else ".")
+        os.close(fd)
+    except OSError as exc:
+        # the file is written beside its target, then renamed over it
+        raise OutputPathError(f"`path` {given}: cannot create a file in {target.parent} ({exc.strerror or exc})") from None
     tmp = Path(name)
     try:
         yield tmp
         os.chmod(tmp, _new_file_mode(target))
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(exc, OSError) and exc.filename is not None and str(exc.filename) in (str(tmp), name):
+            raise _reraise_for(exc, given) from None
         raise
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically; returns the path."""
+    """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`atomic_path`); returns the path.
+
+    Raises
+    ------
+    OSError
+        Including a full device (``ENOSPC``), naming ``path``.
+    """
     with atomic_path(path) as tmp:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
+        try:
+            with open(tmp, "w", encoding="utf-8") as fh:
+                fh.write(text)
+                fh.flush()
+                if stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                    os.fsync(fh.fileno())
+        except OSError as exc:
+            raise _reraise_for(exc, Path(path)) from None
     return Path(path)

@@ -191,6 +191,10 @@ def _finite_values(value: Any, name: str, source: str, vector: bool) -> Any:
 # ------------------------------------------------------------------------------------------
 # built-in kinds
 
+def _axis_of(p: Parameters) -> dict[str, Any]:
+    return {"rotary": p.rotary}
+
+
 def _stribeck_params(st: Stribeck) -> dict[str, tuple[Any, str]]:
     return {"fc": (st.fc, "force"), "fs": (st.fs, "force"), "vs": (st.vs, "velocity"), "delta": (st.delta, "dimensionless")}
 
@@ -205,7 +209,7 @@ def _enc_static(m: StaticFriction) -> Encoded:
 
 def _dec_static(p: Parameters) -> StaticFriction:
     return StaticFriction(_stribeck_from(p), sigma=p.get("sigma", "damping", default=0.0), offset=p.get("offset", "force", default=0.0),
-                          v_linear=p.get("v_linear", "velocity", default=0.0))
+                          v_linear=p.get("v_linear", "velocity", default=0.0), **_axis_of(p))
 
 
 def _gms_c_quantity(slip_law: str) -> str:
@@ -221,7 +225,7 @@ def _enc_gms(m: GMS) -> Encoded:
 def _dec_gms(p: Parameters) -> GMS:
     law = p.option("slip_law", ("time", "displacement"), "time")
     return GMS(_stribeck_from(p), p.get("k", "stiffness", vector=True), p.get("alpha", "dimensionless", vector=True), p.get("c", _gms_c_quantity(law)),
-               p.get("sigma", "damping", default=0.0), law)  # type: ignore[arg-type]
+               p.get("sigma", "damping", default=0.0), law, **_axis_of(p))  # type: ignore[arg-type]
 
 
 def _enc_maxwell(m: MaxwellSlip) -> Encoded:
@@ -229,7 +233,7 @@ def _enc_maxwell(m: MaxwellSlip) -> Encoded:
 
 
 def _dec_maxwell(p: Parameters) -> MaxwellSlip:
-    return MaxwellSlip(p.get("k", "stiffness", vector=True), p.get("w", "force", vector=True), p.get("sigma", "damping", default=0.0))
+    return MaxwellSlip(p.get("k", "stiffness", vector=True), p.get("w", "force", vector=True), p.get("sigma", "damping", default=0.0), **_axis_of(p))
 
 
 def _enc_lugre(m: LuGre) -> Encoded:
@@ -237,7 +241,8 @@ def _enc_lugre(m: LuGre) -> Encoded:
 
 
 def _dec_lugre(p: Parameters) -> LuGre:
-    return LuGre(_stribeck_from(p), p.get("sigma0", "stiffness"), p.get("sigma1", "damping", default=0.0), p.get("sigma2", "damping", default=0.0))
+    return LuGre(_stribeck_from(p), p.get("sigma0", "stiffness"), p.get("sigma1", "damping", default=0.0), p.get("sigma2", "damping", default=0.0),
+                 **_axis_of(p))
 
 
 def _enc_plant(m: Plant) -> Encoded:
@@ -250,7 +255,20 @@ def _dec_plant(p: Parameters) -> Plant:
             f"{p.source}: the plant states no force gain (force per drive unit), so friction cannot act on it; "
             "identify it with `gmsfric identify plant ... --force-gain G`"
         )
-    return Plant(p.get("a", "plant_gain"), p.get("b", "rate"), p.get("c", "rate_squared"), p.get("delay", "time"), p.get("force_gain", "force_gain"))
+    return Plant(p.get("a", "plant_gain"), p.get("b", "rate"), p.get("c", "rate_squared"), p.get("delay", "time"), p.get("force_gain", "force_gain"),
+                 rotary=p.rotary, drive=_drive_of(p))
+
+
+def _drive_of(p: Parameters) -> str:
+    """``"V"`` or ``"A"``: the drive unit the document states for the plant gain."""
+    entry = p.document.get("parameters", {}).get("a")
+    unit = entry.get("unit") if isinstance(entry, Mapping) else None
+    if isinstance(unit, str):
+        try:
+            return "A" if _units.parse(unit).dim[4] != 0 else "V"
+        except _units.UnitError:
+            pass  # reported by p.get
+    return "V"
 
 
 register_kind("static_map", StaticFriction, _enc_static, _dec_static)
@@ -269,11 +287,58 @@ def _version() -> str:
     return __version__
 
 
+def _own_axis(model: Any) -> bool | None:
+    """Whether ``model`` states a rotary (True) or linear (False) axis; None if it states none."""
+    units = getattr(model, "units", None)
+    kind = getattr(units, "kind", None)
+    if kind in ("linear", "rotary"):  # an axis model: its units say it
+        return bool(kind == "rotary")
+    own = getattr(model, "rotary", None)
+    return bool(own) if isinstance(own, (bool, np.bool_)) else None
+
+
+def _own_drive(model: Any) -> str | None:
+    own = getattr(model, "drive", None)
+    if isinstance(own, str) and own in ("V", "A"):
+        return own
+    command = getattr(getattr(model, "units", None), "command", None)
+    if isinstance(command, str):
+        try:
+            return _units.drive_base(command)
+        except _units.UnitError:
+            return None
+    return None
+
+
+def _axis_for(model: Any, rotary: bool | None, where: str = "`model`") -> bool:
+    """The axis a model is written on: its own; ``rotary`` may only confirm it, never relabel it
+    (an angle is never a length, a torque never a force)."""
+    own = _own_axis(model)
+    if rotary is not None and own is not None and bool(rotary) != own:
+        kind = "rotary" if own else "linear"
+        raise InvalidInputError(f"`rotary`={bool(rotary)} would relabel {where}, a {kind}-axis model, as {'rotary' if rotary else 'linear'}: "
+                                f"an angle is never a length; if it is of a {'linear' if own else 'rotary'} axis, build it so "
+                                f"(dataclasses.replace(model, rotary={not own}))")
+    return own if own is not None else bool(rotary)
+
+
+def _drive_for(model: Any, drive: str | None, where: str = "`model`") -> str:
+    own = _own_drive(model)
+    if drive is not None:
+        choice_drive = str(drive)
+        if choice_drive not in ("V", "A"):
+            raise InvalidInputError(f"`drive` must be \"V\" or \"A\", got {show(drive)}")
+        if own is not None and isinstance(getattr(model, "drive", None), str) and own != choice_drive:
+            raise InvalidInputError(f"`drive`={choice_drive!r} would relabel {where}, driven in {own}, as driven in {choice_drive}")
+        return choice_drive
+    return own or "V"
+
+
 def model_to_dict(
     model: Any,
     *,
-    rotary: bool = False,
-    drive: str = "V",
+    rotary: bool | None = None,
+    drive: str | None = None,
     covariance: tuple[Sequence[str], Any, Sequence[str]] | None = None,
     provenance: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
@@ -283,25 +348,33 @@ def model_to_dict(
     Parameters
     ----------
     model : model object or dict of str -> model object
-    rotary : bool
-        The axis is rotary: SI units are rad, N m, N m/rad ... instead of m, N, N/m.
-    drive : {"V", "A"}
-        SI unit of the drive input (plant gain and force gain).
+    rotary : bool, optional
+        The axis is rotary: SI units are rad, N m, N m/rad ... instead of m, N, N/m.  Default: the
+        model's own (``model.rotary``, an axis model's ``units.kind``); given, it must agree with
+        it (a model is never relabeled).  For a kind that states no axis, it decides.
+    drive : {"V", "A"}, optional
+        SI unit of the drive input (plant gain and force gain); default the plant's own
+        (``Plant.drive``), else ``"V"``.
     covariance : (names, matrix, units), optional
         Covariance of identified parameters, in SI, with each name's SI unit.
     provenance : dict, optional
         Where the model comes from (input files, columns, units, command).
+
+    Raises
+    ------
+    InvalidInputError
+        Not a model, or ``rotary`` / ``drive`` contradicting the model's own.
     """
-    if not isinstance(rotary, (bool, np.bool_)):
-        raise InvalidInputError(f"`rotary` must be True or False, got {show(rotary)}")
+    if rotary is not None and not isinstance(rotary, (bool, np.bool_)):
+        raise InvalidInputError(f"`rotary` must be True, False or None, got {show(rotary)}")
     head = {"schema": SCHEMA, "gmsfric_version": _version()}
     if isinstance(model, Mapping):
         if not model:
             raise InvalidInputError("`model`: a bundle needs at least one model")
-        parts = {str(k): _body(v, rotary, drive) for k, v in model.items()}
+        parts = {str(k): _body(v, _axis_for(v, rotary, f"`model[{k!r}]`"), _drive_for(v, drive, f"`model[{k!r}]`")) for k, v in model.items()}
         doc: dict[str, Any] = {**head, "kind": "bundle", "models": parts}
     else:
-        doc = {**head, **_body(model, rotary, drive)}
+        doc = {**head, **_body(model, _axis_for(model, rotary), _drive_for(model, drive))}
     if covariance is not None:
         names, matrix, cov_units = covariance
         m = np.asarray(matrix, dtype=float)
@@ -434,20 +507,21 @@ def _legacy_identify(doc: Mapping[str, Any], source: str) -> Any:
             missing = [n for n in ("fc", "fs", "vs", "sigma", "delta") if n not in si]
             if missing:
                 raise ModelFormatError(f"{source}: static_map parameter(s) {missing} missing")
-            return StaticFriction(Stribeck(si["fc"], si["fs"], si["vs"], si["delta"]), sigma=si["sigma"])
+            return StaticFriction(Stribeck(si["fc"], si["fs"], si["vs"], si["delta"]), sigma=si["sigma"], rotary=rotary)
         if key == "presliding":
             idx = sorted(int(n[1:]) for n in si if n[0] == "k" and n[1:].isdigit())
             wdx = sorted(int(n[1:]) for n in si if n[0] == "w" and n[1:].isdigit())
             if not idx or idx != wdx or set(si) != {f"k{i}" for i in idx} | {f"w{i}" for i in idx}:
                 raise ModelFormatError(f"{source}: pre-sliding blocks must be k1..kN and w1..wN, got {sorted(raw)}")
-            return MaxwellSlip([si[f"k{i}"] for i in idx], [si[f"w{i}"] for i in idx])
+            return MaxwellSlip([si[f"k{i}"] for i in idx], [si[f"w{i}"] for i in idx], rotary=rotary)
         if "force_gain" not in si:
             raise ModelFormatError(f"{source}: the plant states no force gain (force per drive unit), so friction cannot act on it; "
                                    "identify it with `gmsfric identify plant ... --force-gain G`")
         missing = [n for n in ("a", "b", "c", "delay") if n not in si]
         if missing:
             raise ModelFormatError(f"{source}: plant parameter(s) {missing} missing")
-        return Plant(si["a"], si["b"], si["c"], si["delay"], si["force_gain"])
+        drive = "A" if _units.parse(unit("a")).dim[4] != 0 else "V"
+        return Plant(si["a"], si["b"], si["c"], si["delay"], si["force_gain"], rotary=rotary, drive=drive)
     except ModelFormatError:
         raise
     except InvalidInputError as exc:
@@ -462,21 +536,40 @@ def save_model(
     model: Any,
     path: str | Path,
     *,
-    rotary: bool = False,
-    drive: str = "V",
+    rotary: bool | None = None,
+    drive: str | None = None,
     covariance: tuple[Sequence[str], Any, Sequence[str]] | None = None,
     provenance: Mapping[str, Any] | None = None,
 ) -> Path:
     """Write the model document of ``model`` to ``path`` (atomically); returns the path.
-    Arguments as :func:`model_to_dict`."""
-    if not isinstance(rotary, (bool, np.bool_)):
-        raise InvalidInputError(f"`rotary` must be True or False, got {show(rotary)}")
-    if hasattr(model, "model_document") and covariance is None and provenance is None and not rotary:
-        # Models that carry their own covariance, units and provenance (AxisModel) write them.
+    Arguments as :func:`model_to_dict`.  A model that carries its own covariance, units and
+    provenance (an axis model) keeps them; ``provenance`` given is merged into its own.
+
+    Raises
+    ------
+    InvalidInputError
+        ``path`` is a directory, its directory does not exist, or ``rotary`` / ``drive``
+        contradict the model (checked before anything is written).
+    """
+    from .io import check_output_path
+
+    target = check_output_path(path, name="path")
+    if rotary is not None and not isinstance(rotary, (bool, np.bool_)):
+        raise InvalidInputError(f"`rotary` must be True, False or None, got {show(rotary)}")
+    if hasattr(model, "model_document") and covariance is None:
+        # Models that carry their own covariance, units and provenance (AxisModel) write them;
+        # `rotary` and `drive` may only confirm their own.
+        _axis_for(model, rotary)
+        _drive_for(model, drive)
         doc = model.model_document()
+        if provenance is not None:
+            if not isinstance(provenance, Mapping):
+                raise InvalidInputError(f"`provenance` must be a dict, got {show(provenance)}")
+            doc["provenance"] = {**dict(doc.get("provenance") or {}), **dict(provenance)}
     else:
         doc = model_to_dict(model, rotary=rotary, drive=drive, covariance=covariance, provenance=provenance)
-    return write_text_atomic(path, dumps(doc) + "\n")
+    write_text_atomic(target, dumps(doc) + "\n")
+    return Path(path)
 
 
 def _read_json(path: str | Path) -> Any:

@@ -97,6 +97,10 @@ class StaticFriction(NativeBacked):
         Linear-region velocity threshold (m/s), as Simulink/Simscape friction blocks implement a
         static map: for ``|v| < v_linear`` the force is the line through the origin and
         ``F(v_linear)``, so the contact can never stick.  ``0`` (default) keeps true stiction.
+    rotary : bool, optional (keyword)
+        The model is of a rotary axis: the same numbers in rad, rad/s, N m, N m/rad ... instead of
+        m, m/s, N, N/m.  Saved in the model file's ``"axis"`` and read back by ``load_model``; an
+        angle is never a length, so models of the two kinds are never mixed.
     """
 
     _native: ClassVar[_gmsfric.FrictionSpec]
@@ -105,9 +109,11 @@ class StaticFriction(NativeBacked):
     sigma: float = 0.0
     offset: float = 0.0
     v_linear: float = 0.0
+    rotary: bool = field(default=False, kw_only=True)
 
     def __post_init__(self) -> None:
         _check_type("stribeck", self.stribeck, Stribeck)
+        _check_rotary(self.rotary)
         for name in ("sigma", "offset", "v_linear"):
             object.__setattr__(self, name, number(name, getattr(self, name)))
         object.__setattr__(self, "_native", _gmsfric.FrictionSpec.static_map(*self.stribeck.params, self.sigma, self.offset, self.v_linear))
@@ -115,6 +121,16 @@ class StaticFriction(NativeBacked):
     def force(self, v: ArrayLike) -> NDArray[np.float64]:
         """Friction force (N) at velocities ``v`` (m/s); ``F(0) = offset``."""
         return self._native.static_force(as_array("v", v))
+
+
+def _check_rotary(rotary: object) -> None:
+    if not isinstance(rotary, (bool, np.bool_)):
+        raise InvalidInputError(f"`rotary` must be True or False, got {type(rotary).__name__}")
+
+
+def axis_name(model: object) -> str:
+    """``"rotary"`` or ``"linear"``: the axis kind a model (or plant) is of."""
+    return "rotary" if getattr(model, "rotary", False) else "linear"
 
 
 def _check_type(name: str, value: object, kind: type) -> None:
@@ -146,6 +162,10 @@ class GMS(NativeBacked):
         Viscous coefficient (N s/m).
     slip_law : {"time", "displacement"}
         Reading of the paper's eq. 4, see the module docstring.
+    rotary : bool, optional (keyword)
+        The model is of a rotary axis: the same numbers in rad, rad/s, N m, N m/rad ... instead of
+        m, m/s, N, N/m.  Saved in the model file's ``"axis"`` and read back by ``load_model``; an
+        angle is never a length, so models of the two kinds are never mixed.
     """
 
     _native: ClassVar[_gmsfric.FrictionSpec]
@@ -156,9 +176,11 @@ class GMS(NativeBacked):
     c: float
     sigma: float = 0.0
     slip_law: SlipLaw = "time"
+    rotary: bool = field(default=False, kw_only=True)
 
     def __post_init__(self) -> None:
         _check_type("stribeck", self.stribeck, Stribeck)
+        _check_rotary(self.rotary)
         object.__setattr__(self, "k", _vector("k", self.k))
         object.__setattr__(self, "alpha", _vector("alpha", self.alpha))
         object.__setattr__(self, "c", number("c", self.c))
@@ -178,6 +200,7 @@ class GMS(NativeBacked):
         sigma: float = 0.0,
         slip_law: SlipLaw = "time",
         scale: Literal["stribeck", "sum"] = "stribeck",
+        rotary: bool = False,
     ) -> "GMS":
         """Build from block break forces ``w_i`` (N) as printed in the paper's Table 2.
 
@@ -185,7 +208,8 @@ class GMS(NativeBacked):
         ``"stribeck"`` keeps ``stribeck`` as given (blocks break at ``alpha_i s(v)``);
         ``"sum"`` rescales the Stribeck curve so that ``s(0) = sum(w)`` (the paper's eq. 6:
         ``sum W_i`` is the break-away force), keeping its ``fc/fs`` ratio.  Without a
-        ``stribeck`` the level is constant at ``sum(w)`` (a Maxwell-slip-like GMS).
+        ``stribeck`` the level is constant at ``sum(w)`` (a Maxwell-slip-like GMS).  ``rotary``:
+        a rotary axis' model (N m, N m/rad).
         """
         choice("scale", scale, ("stribeck", "sum"))
         if stribeck is not None:
@@ -200,7 +224,7 @@ class GMS(NativeBacked):
             ratio = total / stribeck.fs if stribeck.fs > 0 else 1.0
             stribeck = Stribeck(stribeck.fc * ratio, total, stribeck.vs, stribeck.delta)
 
-        return cls(stribeck, k, w_arr / total, c, sigma, slip_law)
+        return cls(stribeck, k, w_arr / total, c, sigma, slip_law, rotary=rotary)
 
     @property
     def n_blocks(self) -> int:
@@ -217,20 +241,23 @@ class GMS(NativeBacked):
 
     def static_map(self) -> StaticFriction:
         """The static map the model settles on at constant velocity."""
-        return StaticFriction(self.stribeck, self.sigma)
+        return StaticFriction(self.stribeck, self.sigma, rotary=self.rotary)
 
 
 @dataclass(frozen=True)
 class MaxwellSlip(NativeBacked):
-    """Plain Maxwell-slip: blocks of stiffness ``k_i`` (N/m) that slip instantly at ``w_i`` (N)."""
+    """Plain Maxwell-slip: blocks of stiffness ``k_i`` (N/m) that slip instantly at ``w_i`` (N);
+    ``rotary=True`` (keyword): a rotary axis' blocks (N m/rad, N m)."""
 
     _native: ClassVar[_gmsfric.FrictionSpec]
 
     k: Sequence[float]
     w: Sequence[float]
     sigma: float = 0.0
+    rotary: bool = field(default=False, kw_only=True)
 
     def __post_init__(self) -> None:
+        _check_rotary(self.rotary)
         object.__setattr__(self, "k", _vector("k", self.k))
         object.__setattr__(self, "w", _vector("w", self.w))
         object.__setattr__(self, "sigma", number("sigma", self.sigma))
@@ -254,6 +281,10 @@ class LuGre(NativeBacked):
         Bristle damping (N s/m).
     sigma2 : float
         Viscous coefficient (N s/m).
+    rotary : bool, optional (keyword)
+        The model is of a rotary axis: the same numbers in rad, rad/s, N m, N m/rad ... instead of
+        m, m/s, N, N/m.  Saved in the model file's ``"axis"`` and read back by ``load_model``; an
+        angle is never a length, so models of the two kinds are never mixed.
     """
 
     _native: ClassVar[_gmsfric.FrictionSpec]
@@ -262,9 +293,11 @@ class LuGre(NativeBacked):
     sigma0: float
     sigma1: float = 0.0
     sigma2: float = 0.0
+    rotary: bool = field(default=False, kw_only=True)
 
     def __post_init__(self) -> None:
         _check_type("stribeck", self.stribeck, Stribeck)
+        _check_rotary(self.rotary)
         for name in ("sigma0", "sigma1", "sigma2"):
             object.__setattr__(self, name, number(name, getattr(self, name)))
         object.__setattr__(self, "_native", _gmsfric.FrictionSpec.lugre(*self.stribeck.params, self.sigma0, self.sigma1, self.sigma2))

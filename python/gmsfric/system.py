@@ -7,7 +7,7 @@ turned into the core's one input description by :func:`run_inputs`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any, ClassVar, Iterable, Iterator, Mapping, Optional, Sequence, TypedDict, Union
 
@@ -66,6 +66,11 @@ class Plant(NativeBacked):
         Force per unit of drive input (N/unit; N m/unit for a rotary axis).  Friction and load
         forces enter the plant as ``F / force_gain`` input units, undelayed.  For the paper, the
         motor constant that turns volts into newtons; for EMPS ``gtau``.
+    rotary : bool, optional (keyword)
+        The plant of a rotary axis (rad, N m per drive unit): saved in the model file's
+        ``"axis"`` and read back by ``load_model``.
+    drive : {"V", "A"}, optional (keyword)
+        SI unit of the drive input (a voltage or a current command), for the model file's units.
     """
 
     _native: ClassVar[_gmsfric.PlantSpec]
@@ -75,14 +80,21 @@ class Plant(NativeBacked):
     c: float
     delay: float = 0.0
     force_gain: float = 1.0
+    rotary: bool = field(default=False, kw_only=True)
+    drive: str = field(default="V", kw_only=True)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.rotary, (bool, np.bool_)):
+            raise InvalidInputError(f"`rotary` must be True or False, got {type(self.rotary).__name__}")
+        if not isinstance(self.drive, str) or self.drive not in ("V", "A"):
+            raise InvalidInputError(f"`drive` must be \"V\" or \"A\", got {show(self.drive)}")
         for name in ("a", "b", "c", "delay", "force_gain"):
             object.__setattr__(self, name, number(name, getattr(self, name)))
         object.__setattr__(self, "_native", _gmsfric.PlantSpec(*self.params))
 
     @classmethod
-    def from_mass(cls, mass: float, damping: float = 0.0, stiffness: float = 0.0, delay: float = 0.0, force_gain: float = 1.0) -> "Plant":
+    def from_mass(cls, mass: float, damping: float = 0.0, stiffness: float = 0.0, delay: float = 0.0, force_gain: float = 1.0, *,
+                  rotary: bool = False) -> "Plant":
         """Rigid body ``m y'' + d y' + k y = force_gain u(t - delay)`` (kg, N s/m, N/m; for a
         rotary axis kg m^2, N m s/rad, N m/rad)."""
         mass = finite("mass", mass)
@@ -91,7 +103,7 @@ class Plant(NativeBacked):
         force_gain = finite("force_gain", force_gain)
         if not force_gain > 0:
             raise InvalidInputError(f"`force_gain` must be > 0, got {force_gain}")
-        return cls(force_gain / mass, finite("damping", damping) / mass, finite("stiffness", stiffness) / mass, delay, force_gain)
+        return cls(force_gain / mass, finite("damping", damping) / mass, finite("stiffness", stiffness) / mass, delay, force_gain, rotary=rotary)
 
     @property
     def params(self) -> tuple[float, float, float, float, float]:

@@ -176,10 +176,30 @@ class CompensationResult(Result):
         return {"glitch_compensation": plot_compensation(self)}
 
 
+def _angle_keys(doc: Any) -> Any:
+    """``doc`` with the length suffixes of its keys turned into angle ones (``_m`` -> ``_rad``,
+    ``_m_s`` -> ``_rad_s``): a rotary axis' glitches are angles, never lengths."""
+    if isinstance(doc, Mapping):
+        out = {}
+        for k, v in doc.items():
+            key = str(k)
+            if key.endswith("_m"):
+                key = key[:-2] + "_rad"
+            elif key.endswith("_m_s"):
+                key = key[:-4] + "_rad_s"
+            out[key] = _angle_keys(v)
+        return out
+    if isinstance(doc, list):
+        return [_angle_keys(v) for v in doc]
+    return doc
+
+
 @dataclass
 class GlitchStudy(Result):
     """The sinusoid, circle and compensation studies of one ``gmsfric glitch`` run, with the
-    settings they used (``parameters``)."""
+    settings they used (``parameters``).  ``parameters["axis"] == "rotary"``: the studies ran a
+    rotary axis, so every length of the JSON is an angle (``*_rad`` fields instead of ``*_m``) and
+    the table is in µrad.  ``saturation``: the share of samples each run spent at the drive limit."""
 
     sinusoid: ScenarioResult
     circle: CircleResult
@@ -187,20 +207,30 @@ class GlitchStudy(Result):
     parameters: dict[str, Any]
     provenance: dict[str, Any] = field(default_factory=dict, repr=False)
     diagnostics: list[Any] = field(default_factory=list, repr=False)
+    saturation: dict[str, Any] | None = field(default=None, repr=False)
 
     kind = "glitch"
 
+    @property
+    def rotary(self) -> bool:
+        """Whether the studies ran a rotary axis (lengths are angles)."""
+        return self.parameters.get("axis") == "rotary"
+
     def _body(self) -> dict[str, Any]:
-        return {"sinusoid": self.sinusoid.summary(), "circle": self.circle.summary(), "compensation": self.compensation.summary(),
-                "parameters": self.parameters}
+        studies = {"sinusoid": self.sinusoid.summary(), "circle": self.circle.summary(), "compensation": self.compensation.summary()}
+        body: dict[str, Any] = {**(_angle_keys(studies) if self.rotary else studies), "parameters": self.parameters}
+        if self.saturation is not None:
+            body["saturation"] = self.saturation
+        return body
 
     def table(self) -> str:
         """One line: the peak glitch of each model and of each compensation."""
         s = {k: m.height for k, m in self.sinusoid.metrics.items()}
         c = self.compensation
         h = {k: m.height for k, m in c.metrics.items()}
+        unit = "µrad" if self.rotary else "µm"
         return (
-            "sinusoid peak glitch [µm]: " + ", ".join(f"{k} {v * 1e6:.3f}" for k, v in s.items())
+            f"sinusoid peak glitch [{unit}]: " + ", ".join(f"{k} {v * 1e6:.3f}" for k, v in s.items())
             + f"; compensation: none {h['none'] * 1e6:.3f}, static FF {h['static_feedforward'] * 1e6:.3f}"
             f" ({c.reduction('static_feedforward'):.1f} %), GMS FF {h['gms_feedforward'] * 1e6:.3f}"
             f" ({c.reduction('gms_feedforward'):.1f} %), DOB {h['dob'] * 1e6:.3f}"

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import warnings
 from typing import Any
 
@@ -20,9 +21,10 @@ from .results import IdentificationResult
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", metavar="FILE", help="CSV with a header row, or MATLAB .mat")
-    p.add_argument("--json", metavar="OUT", help="write the parameters with standard errors, and the SI model document, as JSON")
+    p.add_argument("--json", metavar="OUT", help="write the parameters with standard errors, and the SI model document, as JSON ('-' = stdout, "
+                   "the table then goes to stderr)")
     p.add_argument("--plot", metavar="DIR", help="save the figures (PNG) in DIR")
-    declare_files(p, inputs=("file",), outputs=("json",), output_dirs=("plot",))
+    declare_files(p, inputs=("file",), outputs=("json",), output_dirs=("plot",), stdout=("json",))
 
 
 def _force_source(p: argparse.ArgumentParser) -> None:
@@ -90,13 +92,14 @@ def register(subparsers: Any) -> None:
 
 
 def _finish(res: IdentificationResult, args: argparse.Namespace, run: Run, columns: dict[str, Any], units: dict[str, str], **extra: Any) -> int:
-    print(res.table())
+    out = sys.stderr if args.json == "-" else sys.stdout  # stdout carries the JSON alone
+    print(res.table(), file=out)
     info = {k: v for k, v in res.info.items() if isinstance(v, (int, float, str)) and not isinstance(v, bool)}
     if info:
-        print("  " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in info.items()))
+        print("  " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in info.items()), file=out)
     block = format_block(res.diagnostics)
     if block:
-        print(block)
+        print(block, file=out)
     res.provenance = run.provenance(columns=columns, units=units, **extra)
     if args.json:
         run.write_json(args.json, res)
@@ -214,9 +217,9 @@ def _register_paper(subparsers: Any) -> None:
 
     p = subparsers.add_parser("paper", help="replay the paper's identification on the virtual rig (true vs identified)", description=paper.__doc__)
     p.add_argument("--plot", "--out", dest="out", metavar="DIR", help="save the figures (Figs. 3-7, 10-13 equivalents) in DIR")
-    p.add_argument("--json", metavar="OUT", help="write the tables and the identified models (gmsfric_model) as JSON")
+    p.add_argument("--json", metavar="OUT", help="write the tables and the identified models (gmsfric_model) as JSON ('-' = stdout)")
     p.add_argument("--seed", type=non_negative_int, default=0)
-    declare_files(p, outputs=("json",), output_dirs=("out",))
+    declare_files(p, outputs=("json",), output_dirs=("out",), stdout=("json",))
     p.set_defaults(func=_paper)
 
 
@@ -224,13 +227,14 @@ def _paper(args: argparse.Namespace, run: Run) -> int:
     from .paper import ReplaySettings, replay_paper
 
     rep = replay_paper(ReplaySettings(seed=args.seed), progress=run.progress)
-    print("gmsfric paper: the paper's experiments replayed on the virtual rig (seed %d)" % args.seed)
-    print("printed = the paper's number, true = the rig (PaperReading defaults), z = (identified - true) / stderr\n")
-    print(rep.table())
-    print(f"GMS blocks: {rep.presliding.info['n_blocks']} (the paper's choice; ReplaySettings(n_blocks=None) lets BIC choose)")
-    print("Eq. 1 and the static-model Table 3 are biased on purpose: the rig's friction is GMS, whose pre-sliding")
-    print("stiffness and damping a linear fit (or a static map) cannot represent; the GMS revision recovers the mechanics.")
-    print(f"static-map plateaus used: {rep.static_map.info.get('n_plateaus')} (rejected {rep.static_map.info.get('n_rejected')})")
+    out = sys.stderr if args.json == "-" else sys.stdout  # stdout carries the JSON alone
+    print("gmsfric paper: the paper's experiments replayed on the virtual rig (seed %d)" % args.seed, file=out)
+    print("printed = the paper's number, true = the rig (PaperReading defaults), z = (identified - true) / stderr\n", file=out)
+    print(rep.table(), file=out)
+    print(f"GMS blocks: {rep.presliding.info['n_blocks']} (the paper's choice; ReplaySettings(n_blocks=None) lets BIC choose)", file=out)
+    print("Eq. 1 and the static-model Table 3 are biased on purpose: the rig's friction is GMS, whose pre-sliding", file=out)
+    print("stiffness and damping a linear fit (or a static map) cannot represent; the GMS revision recovers the mechanics.", file=out)
+    print(f"static-map plateaus used: {rep.static_map.info.get('n_plateaus')} (rejected {rep.static_map.info.get('n_rejected')})", file=out)
     rep.provenance = run.provenance(seed=args.seed)
     if args.json:
         run.write_json(args.json, rep)

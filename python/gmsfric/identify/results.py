@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -52,6 +53,18 @@ class IdentificationResult(Result):
     covariance: tuple[list[str], NDArray[np.float64]] | None = field(default=None, repr=False)
     provenance: dict[str, Any] = field(default_factory=dict, repr=False)
     diagnostics: list[Any] = field(default_factory=list, repr=False)
+
+    def __post_init__(self) -> None:
+        # The SI model states the axis (and drive) its units are of, so that a rotary fit's
+        # model stays rotary in Python and in every file written from it.
+        obj = self.model_object
+        if obj is not None and dataclasses.is_dataclass(obj) and "rotary" in {f.name for f in dataclasses.fields(obj)} and self.units:
+            try:
+                rotary, drive = self._axis()
+            except (KeyError, ValueError):
+                return
+            extra = {"drive": drive} if "drive" in {f.name for f in dataclasses.fields(obj)} else {}
+            self.model_object = dataclasses.replace(obj, rotary=rotary, **extra)
 
     @property
     def kind(self) -> str:  # type: ignore[override]

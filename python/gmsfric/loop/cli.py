@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import warnings
 from typing import Any
 
@@ -38,7 +39,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--time-unit", default="s")
     p.add_argument("--position-unit", default="m")
     p.add_argument("--force-unit", default=None, help="unit of the force column (default N, or N m on a rotary axis)")
-    p.add_argument("--json", metavar="OUT", help="write the report as JSON")
+    p.add_argument("--json", metavar="OUT", help="write the report as JSON ('-' = stdout, the table then goes to stderr)")
     p.add_argument("--plot", metavar="DIR", help="write figures (PNG) into DIR")
     p.add_argument("--baseline", choices=("reference", "rigid"), default="reference",
                    help="reference: M qdd + Fv qd + Fc sign(qd) + offset (EMPS, default); rigid: without the offset, which becomes a candidate effect")
@@ -57,7 +58,7 @@ def register(subparsers: Any) -> None:
                      "simulation error on EST (needs --reference --kp --kv); closed_loop then reports the refined models")
     sim.add_argument("--open-loop", action="store_true",
                      help="score both models by open-loop simulation: position from the measured command, RMSE after 20 samples (JSON open_loop)")
-    declare_files(p, inputs=("est", "validate"), outputs=("json",), output_dirs=("plot",))
+    declare_files(p, inputs=("est", "validate"), outputs=("json",), output_dirs=("plot",), stdout=("json",))
     p.set_defaults(func=_loop)
 
 
@@ -100,10 +101,11 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
             result.closed_loop, result.closed_loop_runs = closed_loop_report({"baseline": result.baseline, "final": result.final}, runs, ctrl)
     if args.fit == "simulation" or args.open_loop:
         result = add_simulation(result, ctrl, fit=args.fit == "simulation", open_loop=args.open_loop, progress=run.progress)
-    print(result.table())
+    out = sys.stderr if args.json == "-" else sys.stdout  # stdout carries the JSON alone
+    print(result.table(), file=out)
     block = format_block(result.diagnostics)
     if block:
-        print(block)
+        print(block, file=out)
     columns = {"time": args.time, "position": args.position, "force": args.force, "command": args.command_col, "reference": args.reference,
                "disturbance": args.disturbance}
     result.provenance = run.provenance(columns=columns, units={"time": args.time_unit, "position": args.position_unit, "force": args.force_unit},
