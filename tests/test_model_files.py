@@ -81,3 +81,23 @@ def test_the_loops_emps_result_loads_and_simulates_with_its_effects_in_feedback(
                          initial_position=q0, initial_velocity=v0)
     err = 100 * np.linalg.norm(val.force - val.gain * sim.command) / np.linalg.norm(val.force)
     assert err < 5.0, f"closed-loop force error on the pulses run {err:.2f} %"
+
+
+def test_save_model_of_an_axis_model_never_relabels_it_and_keeps_covariance_and_provenance(tmp_path: Path) -> None:
+    import dataclasses
+    import json
+
+    rot = full_axis()
+    lin = dataclasses.replace(rot, units=g.AxisUnits("linear", "A"))
+    with pytest.raises(g.InvalidInputError, match="`rotary`=True would relabel `model`, a linear-axis model"):
+        g.save_model(lin, tmp_path / "lin.json", rotary=True)
+    with pytest.raises(g.InvalidInputError, match="`rotary`=False would relabel"):
+        g.save_model(rot, tmp_path / "rot.json", rotary=False)
+    assert not list(tmp_path.iterdir())
+    # confirming its own axis, or adding provenance, keeps the covariance and provenance
+    path = g.save_model(rot, tmp_path / "rot.json", rotary=True, provenance={"note": "kept"})
+    doc = json.loads(path.read_text())
+    assert doc["axis"] == "rotary" and doc["covariance"]["names"] == list(rot.covariance.names)
+    assert doc["provenance"]["command"] == "test" and doc["provenance"]["note"] == "kept"
+    back = g.load_model(path)
+    assert back.covariance is not None and back.units == rot.units and back.plant == rot.plant
