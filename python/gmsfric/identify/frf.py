@@ -361,7 +361,7 @@ def fit_plant(
         k_u = _units.factor(input_unit, "drive", name="input_unit")
         q, r = _refine_matched(q, r, sel.record, sel.f[m], H, sd, kt, k_u, k_h * k_u, fit_delay, float(delay) * kt)
     jac = r.jac if fit_delay else r.jac[:, :3]
-    dof = max(2 * f.size - (4 if fit_delay else 3), 1)
+    dof = max(2 * getattr(r, "n_bins", f.size) - (4 if fit_delay else 3), 1)
     chi2 = float(r.fun @ r.fun)
     matched = zoh and sel.record is not None
     # The bins' noise is the measurement's: the Jacobian covariance is scaled by chi2/dof only
@@ -370,7 +370,8 @@ def fit_plant(
     # leakage dominates, so it is not scaled down).
     ratio = chi2 / dof if chi2 > 0 else 1.0
     scale = float(np.clip(ratio, 1.0 if matched else 0.5, 2.0))
-    cov = covariance_from_jacobian(jac, r.fun) * (scale / ratio) * frf.bin_correlation
+    s2_jac = chi2 / max(jac.shape[0] - jac.shape[1], 1) if chi2 > 0 else 1.0  # what covariance_from_jacobian scales by
+    cov = covariance_from_jacobian(jac, r.fun) * (scale / s2_jac) * frf.bin_correlation
     se = np.sqrt(np.clip(np.diag(cov), 0, np.inf))
     a_si = float(np.exp(q[0]))
     tau_si = float(q[3]) if fit_delay else float(delay) * kt
@@ -402,7 +403,7 @@ def fit_plant(
     # report in the data's units (the edge)
     fac = {k: _units.factor(units[k], PLANT_QUANTITIES[k], name=f"units[{k!r}]") for k in PLANT_NAMES}
     params = {k: (values_si[k] / fac[k], se_si[k] / fac[k]) for k in PLANT_NAMES}
-    info = {"zoh_dt": sel.dt if zoh else 0.0, "model": "sampled" if zoh else "continuous", "n_bins": int(f.size),
+    info = {"zoh_dt": sel.dt if zoh else 0.0, "model": "sampled" if zoh else "continuous", "n_bins": int(f.size), "n_bins_weighted": int(getattr(r, "n_bins", f.size)),
             "band": [float(sel.f[m].min()), float(sel.f[m].max())], "chi2_per_dof": chi2 / dof, "n_averages": frf.n_averages}
     info["force_gain"] = force_gain
     if force_gain is not None:
@@ -487,20 +488,28 @@ def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: ND
     # noise-free model's output through the same segments; it cancels in this comparison).  The
     # model can only lower it, never below a floor, and never above the coherence bound.
     y_fit = simulate_batch(plants([sol.x]), None, None, None, dt_si, feedforward=u_si, record=("position",), threads=1, progress=False).position
-    sd[:] = _matched_stderr(welch, record.output * k_y, y_fit[0], H_meas)
+    sd[:] = _matched_stderr(welch, record.output * k_y, y_fit[0], H_meas, open_loop=record.excitation is None)
+    # a bin the reference does not excite (between or beside a multisine's lines) holds a ratio of
+    # leakage residues that any small parameter error changes by far more than the noise: no data
+    S_rr = np.mean(np.abs(welch.R) ** 2, axis=0)
+    idle = S_rr < 1e-6 * np.median(S_rr)
+    if idle.sum() <= sd.size - 8:
+        sd[idle] = np.inf
     sol = least_squares(resid, sol.x, jac=jac, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=20)
     q = np.concatenate([sol.x, q0[n_q:]])
     sol.bounds_hi = r0.bounds_hi
+    sol.n_bins = int(np.sum(np.isfinite(sd)))
     if not fit_delay:
         sol.jac = np.column_stack([sol.jac, np.zeros(sol.jac.shape[0])])
     return q, sol
 
 
-def _matched_stderr(welch: _WelchRatio, y: NDArray[np.float64], y_model: NDArray[np.float64], H: NDArray[np.complex128]) -> NDArray[np.float64]:
+def _matched_stderr(welch: _WelchRatio, y: NDArray[np.float64], y_model: NDArray[np.float64], H: NDArray[np.complex128],
+                    open_loop: bool = True) -> NDArray[np.float64]:
     """Standard deviation of the real (and imaginary) part of the Welch ratio at each bin from the
     output noise, ``var(H) = S_rr E / (n |S_ru|^2)`` with ``E`` the output power incoherent with
     the reference ``r`` (Bendat & Piersol).  ``E`` is the measured one less that of ``y_model``
-    (leakage, the same for model and data), at least ``E / n`` (``n`` segments: about the scatter
+    (leakage, the same for model and data; open loop only), at least ``E / n`` (``n`` segments: about the scatter
     of that difference where leakage dominates)."""
     R = welch.R
     n = R.shape[0]
@@ -511,7 +520,9 @@ def _matched_stderr(welch: _WelchRatio, y: NDArray[np.float64], y_model: NDArray
         return np.maximum(np.mean(np.abs(X) ** 2, axis=0) - np.abs(np.mean(np.conj(R) * X, axis=0)) ** 2 / S_rr, 0.0)  # type: ignore[no-any-return]
 
     e_meas = incoherent(y) * n / max(n - 1, 1)  # one complex coefficient per bin fitted away
-    e_leak = incoherent(y_model) * n / max(n - 1, 1)
+    # with feedback the noise enters the input too and is no longer independent of the model's
+    # output: no subtraction there (the coherence bound)
+    e_leak = incoherent(y_model) * n / max(n - 1, 1) if open_loop else 0.0
     e_noise = np.clip(e_meas - e_leak, e_meas / n, e_meas)
     sd = np.sqrt(S_rr * e_noise / (2 * n * np.abs(welch.S_ru / n) ** 2))
     return np.maximum(sd, 1e-9 * np.abs(H))  # type: ignore[no-any-return]
@@ -675,11 +686,12 @@ def _fit_plant_delay_span(f: NDArray[np.float64], H: NDArray[np.complex128], sd:
     hi = np.array([np.inf, np.inf, np.inf, max(1.5 * (max_delay if upper is None else upper), 1e-12)])
     best = None
     # the best continuous starts and the best sampled ones (either kind can mislead the other's ranking)
-    for _, q0 in starts[:3] + extra[:3]:
+    for j, (_, q0) in enumerate(starts[:3] + extra[:3]):
         q0 = np.clip(q0, lo, hi * (1 - 1e-9))
         if not fit_delay:
             q0[3] = 0.0
-        r = least_squares(resid, q0, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=2000)
+        # a sampled start near its optimum converges in tens of steps; one that crawls is not it
+        r = least_squares(resid, q0, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=2000 if j < len(starts[:3]) else 300)
         if best is None or r.cost < best.cost:
             best = r
     assert best is not None
