@@ -192,3 +192,17 @@ def test_a_refused_unit_is_not_in_the_expected_list(tmp_path, capsys):
     code = main(["identify", "static-map", str(f), "--time", "t", "--position", "x", "--force", "F", "--position-unit", "deg"])
     err = capsys.readouterr().err
     assert code == 2 and "--force-unit" in err and "expected N m" in err and "expected N," not in err and "force_unit" not in err
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["presliding", "{f}", "--time", "t", "--position", "x", "--force", "F", "--position-unit", ""], "--position-unit"),
+    (["presliding", "{f}", "--time", "t", "--position", "x", "--force", "F", "--position-unit", "deg"], "--force-unit"),
+    (["plant", "{f}", "--time", "t", "--input", "x", "--output", "F", "--force-gain", "1", "--force-gain-unit", "N m/V"], "--force-gain-unit"),
+    (["static-map", "{f}", "--velocity", "x", "--force", "F", "--force-unit", "N m"], "--force-unit"),
+])
+def test_unit_errors_name_the_flags_not_python_arguments(tmp_path, capsys, argv, flag):
+    f = tmp_path / "run.csv"
+    f.write_text("t,x,F\n" + "\n".join(f"{i},{i},1" for i in range(60)))
+    assert main(["identify", *[a.format(f=f) for a in argv]]) == 2
+    err = capsys.readouterr().err
+    assert flag in err and "_unit`" not in err and "`" + flag.strip("-").replace("-", "_") not in err

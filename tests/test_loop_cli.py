@@ -70,3 +70,34 @@ def test_cli_errors_name_the_problem(rig_csv, argv, message, capsys):
     path, _ = rig_csv
     assert main(["loop", str(path), *argv, "--quiet"]) == 2
     assert message in capsys.readouterr().err
+
+
+def _loop_argv(path, gain, *extra):
+    return ["loop", str(path), "--time", "t_ms", "--time-unit", "ms", "--position", "x_mm", "--position-unit", "mm",
+            "--command", "u", "--gain", str(gain), *extra]
+
+
+def test_cli_refuses_the_estimation_run_as_validation_run(rig_csv, tmp_path, capsys):
+    path, gain = rig_csv
+    copy = tmp_path / "copy.csv"
+    copy.write_bytes(path.read_bytes())
+    for val, why in ((path, "the same file"), (copy, "identical content")):
+        assert main(_loop_argv(path, gain, "--validate", str(val))) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"--validate {val} is the estimation run" in err[0] and why in err[0]
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--validate", "{other}", "--holdout", "0.2"], "--holdout goes without --validate"),
+    (["--disturbance", "u"], "--disturbance names a column of the validation run: it needs --validate"),
+    (["--reference", "ref_mm"], "--reference is only used by the closed-loop simulation"),
+    (["--drive-limit", "10"], "--drive-limit is only used by the closed-loop simulation"),
+    (["--position-unit", ""], "--position-unit"),
+])
+def test_cli_refuses_flags_it_would_ignore(rig_csv, tmp_path, capsys, extra, message):
+    path, gain = rig_csv
+    other = tmp_path / "other.csv"
+    other.write_text(path.read_text().replace("\n", "\n", 1) + "\n")  # same data, other bytes
+    assert main([*_loop_argv(path, gain), *[e.format(other=other) for e in extra]]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err

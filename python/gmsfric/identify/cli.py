@@ -4,9 +4,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import warnings
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,6 +18,22 @@ from ..errors import DataError, FitWarning
 from ..io import Table, load_columns, read_table
 from .diagnostics import format_block
 from .results import IdentificationResult
+
+
+_UNIT_ARGS = ("time_unit", "position_unit", "force_unit", "velocity_unit", "input_unit", "output_unit", "force_gain_unit")
+
+
+@contextlib.contextmanager
+def _as_flags() -> Iterator[None]:
+    """Unit errors of the Python API name its arguments (``force_unit``); on the command line
+    they name the flags (``--force-unit``)."""
+    try:
+        yield
+    except _units.UnitError as exc:
+        text = str(exc)
+        for name in _UNIT_ARGS:
+            text = text.replace(f"`{name}`", "--" + name.replace("_", "-"))
+        raise _units.UnitError(text) from None
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -165,7 +182,8 @@ def _static_map(args: argparse.Namespace, run: Run) -> int:
         vel_unit = args.velocity_unit or "m/s"
         rotary = _units.is_rotary(vel_unit, "velocity", name="--velocity-unit")
         _units.check(args.force_unit, "force", rotary=rotary, name="--force-unit")
-        static_map_units(vel_unit, args.force_unit)
+        with _as_flags():
+            static_map_units(vel_unit, args.force_unit)
         units = {"velocity": vel_unit, "force": args.force_unit}
         table = read_table(args.file)
         columns = {"velocity": args.velocity, **force_col}
@@ -181,7 +199,8 @@ def _presliding(args: argparse.Namespace, run: Run) -> int:
     from .presliding import fit_presliding, presliding_units
 
     _check_force_source(args)
-    presliding_units(args.position_unit, args.force_unit, args.time_unit)
+    with _as_flags():
+        presliding_units(args.position_unit, args.force_unit, args.time_unit)
     table = read_table(args.file)
     columns = {"time": args.time, "position": args.position, **({"force": args.force} if args.command_col is None else {"command": args.command_col})}
     cols = load_columns(table, columns, min_samples=50)
@@ -196,7 +215,8 @@ def _presliding(args: argparse.Namespace, run: Run) -> int:
 def _plant(args: argparse.Namespace, run: Run) -> int:
     from .frf import estimate_frf, fit_plant, plant_units
 
-    _, fg_unit = plant_units(args.time_unit, args.input_unit, args.output_unit, args.force_gain_unit)
+    with _as_flags():
+        _, fg_unit = plant_units(args.time_unit, args.input_unit, args.output_unit, args.force_gain_unit)
     if args.fmin >= args.fmax:
         raise DataError(f"--fmin {args.fmin:g} must be below --fmax {args.fmax:g}")
     columns = {"time": args.time, "input": args.input, "output": args.output, "excitation": args.excitation}

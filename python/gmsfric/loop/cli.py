@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import hashlib
+import os
 import sys
 import warnings
+from pathlib import Path
 from typing import Any
 
 from .. import units as _units
@@ -43,12 +46,14 @@ def register(subparsers: Any) -> None:
     p.add_argument("--plot", metavar="DIR", help="write figures (PNG) into DIR")
     p.add_argument("--baseline", choices=("reference", "rigid"), default="reference",
                    help="reference: M qdd + Fv qd + Fc sign(qd) + offset (EMPS, default); rigid: without the offset, which becomes a candidate effect")
-    p.add_argument("--holdout", type=fraction, default=0.3, help="fraction of EST held out when there is no --validate (default 0.3)")
+    p.add_argument("--holdout", type=fraction, default=None, help="fraction of EST held out when there is no --validate (default 0.3; "
+                   "refused with --validate)")
     p.add_argument("--cutoff-hz", type=positive_float, default=None,
                    help="position filter cut-off (Hz); default min(100 Hz, fs/10), and below 1 kHz the best of 0.1, 0.2, 0.3 x fs by cross-validation on EST")
     cl = p.add_argument_group("closed-loop simulation (optional: needs a reference and a cascade controller)")
-    cl.add_argument("--reference", metavar="COL", help="reference position column")
-    cl.add_argument("--disturbance", metavar="COL", help="input disturbance column of the validation run (command units), e.g. pulses_N")
+    cl.add_argument("--reference", metavar="COL", help="reference position column (with --kp and --kv)")
+    cl.add_argument("--disturbance", metavar="COL", help="input disturbance column of the validation run (command units), e.g. pulses_N; "
+                    "needs --validate")
     cl.add_argument("--kp", metavar="K", help="cascade position gain (1/s): number or scalar name")
     cl.add_argument("--kv", metavar="K", help="cascade velocity gain (command per m/s): number or scalar name")
     cl.add_argument("--drive-limit", type=positive_float, default=None, help="symmetric drive limit (command units)")
@@ -62,6 +67,19 @@ def register(subparsers: Any) -> None:
     p.set_defaults(func=_loop)
 
 
+def _check_not_the_estimation_run(est: str, validate: str) -> None:
+    """Refuse a validation run that is the estimation run (same file, or the same bytes): its
+    "held-out" numbers would be estimation numbers."""
+    a, b = Path(est), Path(validate)
+    same = os.path.samefile(a, b)
+    if not same and a.stat().st_size == b.stat().st_size:
+        with a.open("rb") as fa, b.open("rb") as fb:
+            same = hashlib.sha256(fa.read()).digest() == hashlib.sha256(fb.read()).digest()
+    if same:
+        raise DataError(f"--validate {validate} is the estimation run {est} ({'the same file' if os.path.samefile(a, b) else 'identical content'}): "
+                        "its numbers would be estimation numbers, not held-out ones; give another run, or leave --validate out to hold out part of EST")
+
+
 def _loop(args: argparse.Namespace, run: Run) -> int:
     """Run ``gmsfric loop`` (called by the runner of :mod:`gmsfric.cli`)."""
     _units.check(args.time_unit, "time", name="--time-unit")
@@ -71,6 +89,17 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
     _units.check(args.force_unit, "force", rotary=rotary, name="--force-unit")
     if (args.kp is None) != (args.kv is None) or (args.kp is not None and not args.reference):
         raise DataError("the closed-loop simulation needs --reference, --kp and --kv together")
+    if args.reference is not None and args.kp is None:
+        raise DataError("--reference is only used by the closed-loop simulation: give --kp and --kv with it (or leave it out)")
+    if args.holdout is not None and args.validate is not None:
+        raise DataError("--holdout goes without --validate: with a validation run nothing of EST is held out")
+    if args.disturbance is not None and args.validate is None:
+        raise DataError("--disturbance names a column of the validation run: it needs --validate")
+    if args.drive_limit is not None and args.kp is None:
+        raise DataError("--drive-limit is only used by the closed-loop simulation: give --reference, --kp and --kv with it")
+    if args.validate is not None:
+        _check_not_the_estimation_run(args.est, args.validate)
+    holdout = 0.3 if args.holdout is None else args.holdout
     if args.fit == "simulation" and not (args.reference and args.kp is not None):
         raise DataError("--fit simulation needs the closed-loop simulation: --reference, --kp and --kv")
     if args.command_col is not None and args.gain is None:
@@ -85,7 +114,7 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
     if args.validate:
         val = load_axis_data(args.validate, disturbance=args.disturbance, **common)
     base = ("inertia", "viscous", "coulomb", "offset") if args.baseline == "reference" else ("inertia", "viscous", "coulomb")
-    cfg = LoopConfig(preprocessing=Preprocessing(cutoff_hz=args.cutoff_hz), holdout_fraction=args.holdout, baseline=base, progress=run.progress)
+    cfg = LoopConfig(preprocessing=Preprocessing(cutoff_hz=args.cutoff_hz), holdout_fraction=holdout, baseline=base, progress=run.progress)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)  # printed under the table instead
         result = run_loop(est, val, cfg)
