@@ -98,3 +98,89 @@ def test_a_record_that_never_changes_is_refused_before_the_fit(which):
     for fit in (lambda: fit_presliding(t, x, F, progress=False), lambda: build_virgin_curve(t, x, F)):
         with pytest.raises(IdentificationError, match=f"the {which} never changes"):
             fit()
+
+
+def _maxwell_slip(x, k, w):
+    """Independent Maxwell-slip force (virgin start) along ``x``: numpy, not the core."""
+    d = np.asarray(w) / np.asarray(k)
+    z = np.zeros(d.size)
+    out = np.empty(x.size)
+    prev = x[0]
+    for i, xi in enumerate(x):
+        z = np.clip(z + (xi - prev), -d, d)
+        prev = xi
+        out[i] = float(np.asarray(k) @ z)
+    return out
+
+
+def _triangle_test(d, w, amps, spc, cycles, quantum, noise, seed):
+    rng = np.random.default_rng(seed)
+    ph = np.arange(spc) / spc
+    base = np.interp(ph, [0, 0.25, 0.75, 1], [0, 1, -1, 0])
+    x = np.r_[np.concatenate([a * base for a in np.repeat(amps, cycles)]), 0.0]
+    F = _maxwell_slip(x, np.asarray(w) / np.asarray(d), w) + noise * rng.standard_normal(x.size)
+    t = np.arange(x.size) / 300.0
+    return t, np.round(x / quantum) * quantum, F
+
+
+def test_block_count_search_goes_past_a_worse_count():
+    """Five blocks over 3.6 decades, triangle virgin test, 3.2 nrad encoder: the 3-block force fit
+    is inadmissible and 2 blocks beat 1 (old code: stopped there, 2 blocks at chi2/dof ~3000;
+    with a forced count, refused by a 90-count 'resolution')."""
+    d = np.array([6.456e-7, 4.311e-6, 4.155e-5, 2.925e-4, 2.593e-3])
+    w = np.array([0.4674, 0.4294, 0.8462, 0.2384, 0.4744])
+    t, x, F = _triangle_test(d, w, [1.5e-4, 8.3e-3], 1027, 4, 3.22e-9, 7.9e-4, seed=77)
+    res = fit_presliding(t, x, F, position_unit="rad", force_unit="N m", progress=False)
+    assert res.info["n_blocks"] == 5
+    assert res.info["chi2_dof"] < 1.5
+    np.testing.assert_allclose(res.info["knots"], d, rtol=0.02)  # tolerance: 2 % on every break displacement
+    for i in range(5):
+        assert res.value(f"w{i + 1}") == pytest.approx(w[i], rel=0.03)
+
+
+def test_a_block_breaking_within_one_sample_is_flagged():
+    """A block breaking at 5 um while the fast sinusoid moves ~20 um a sample where it breaks:
+    the record cannot resolve it and the finding says so (old code: no finding)."""
+    import warnings
+
+    from gmsfric.errors import FitWarning
+
+    d = np.array([5e-6, 4e-4, 4e-3])
+    w = np.array([6.0, 10.0, 12.0])
+    rng = np.random.default_rng(49)
+    spc = 300
+    amps = 8e-3 * np.array([1.0, 0.6, 1.0, 0.8])
+    x = np.r_[np.concatenate([a * np.sin(2 * np.pi * np.arange(spc) / spc) for a in np.repeat(amps, 2)]), 0.0]
+    F = _maxwell_slip(x, w / d, w) + 0.02 * rng.standard_normal(x.size)
+    t = np.arange(x.size) * 1e-3
+    x = np.round(x / 1e-8) * 1e-8
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = fit_presliding(t, x, F, progress=False)
+    flagged = [dg for dg in res.diagnostics if dg["code"] == "coverage" and "one sample" in dg["message"]]
+    assert flagged and flagged[0]["parameter"] == "k1"
+    assert any(issubclass(c.category, FitWarning) and "one sample" in str(c.message) for c in caught)
+
+
+def test_a_force_of_the_wrong_sign_is_named():
+    """Reaction-force convention: the error names the sign instead of 'no admissible block set'."""
+    g = GMS.from_break_forces([1e6, 1e5], [1.0, 2.0], 1e5)
+    d = _rig(g, dt=1e-3, encoder=1e-9, force_noise=1e-3).sinusoid_test([1e-6, 4e-5], 1.0, cycles=2, seed=1)
+    with pytest.raises(IdentificationError, match="opposite sign to the motion"):
+        fit_presliding(d["t"], d["position"], -d["force"], progress=False)
+
+
+def test_resolution_of_a_fine_encoder_and_of_a_smooth_sinusoid():
+    """The resolution estimate: a 3.2 nrad count on a 17 mrad triangle moving 90+ counts a sample
+    (old: 91 counts, steps below 1e-6 of the span discarded), a noiseless 1 mm sine at 200 samples
+    a cycle (old: 0.49 um from its curvature) and white noise (unchanged)."""
+    from gmsfric.identify.sampling import estimate_resolution
+
+    q = 3.22e-9
+    ph = np.arange(1027) / 1027
+    tri = np.concatenate([a * np.interp(ph, [0, 0.25, 0.75, 1], [0, 1, -1, 0]) for a in (1.5e-4, 8.3e-3)])
+    assert estimate_resolution(np.round(tri / q) * q) == pytest.approx(q, rel=1e-6)
+    sine = 1e-3 * np.sin(2 * np.pi * np.arange(1000) / 200)
+    assert estimate_resolution(sine) < 1e-9
+    noisy = sine + 1e-7 * np.random.default_rng(0).standard_normal(sine.size)
+    assert estimate_resolution(noisy) == pytest.approx(1e-7, rel=0.15)

@@ -89,3 +89,61 @@ def test_too_few_plateaus_is_a_clear_error():
 def test_too_few_points_is_a_clear_error():
     with pytest.raises(IdentificationError, match="too few"):
         fit_static_map([0.1, 0.2, -0.1], [1, 1, -1], progress=False)
+
+
+def _fit_quiet(v, F, **kw):
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = fit_static_map(v, F, progress=False, **kw)
+    return res, caught
+
+
+def test_no_stribeck_drop_in_the_data_is_flagged_not_reported_as_fs():
+    """Points from 5x vs upwards: the drop is not in the data (old code: fs 56 % low with a 0.1 %
+    standard error, vs 68x too high, no diagnostic)."""
+    from gmsfric.errors import FitWarning
+
+    true = dict(fc=29.665, fs=66.827, vs=7.838e-5, sigma=2.853e7 * 1e-3, delta=1.757)
+    speeds = np.geomspace(5.18 * true["vs"], 190 * true["vs"], 12)
+    v = np.concatenate([speeds, -speeds])
+    flagged = 0
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        F = static_map_curve(v, **true) + 0.0038 * true["fc"] * rng.standard_normal(v.size)
+        res, caught = _fit_quiet(v, F)
+        codes = {(d["code"], d["parameter"]) for d in res.diagnostics}
+        fs_wrong = abs(res.value("fs") / true["fs"] - 1) > 0.05
+        named = ("coverage", "fs") in codes or ("coverage", "vs") in codes or any(c == "at_bound" for c, _ in codes)
+        # a wrong fs is never left without a finding and a FitWarning
+        assert named or not fs_wrong
+        assert not fs_wrong or any(issubclass(w.category, FitWarning) for w in caught)
+        flagged += named
+        assert 0.0 <= res.info["drop_p_value"] <= 1.0
+    assert flagged == 4  # the data never show the drop: every seed says so
+
+
+def test_a_sampled_drop_raises_no_drop_finding_over_seeds():
+    """False alarms: speeds from vs/10 to 100 vs at 0.5 % noise: the drop is clear, no finding."""
+    true = dict(fc=1.0, fs=1.6, vs=2e-3, sigma=3.0, delta=1.2)
+    speeds = np.geomspace(true["vs"] / 10, 100 * true["vs"], 10)
+    v = np.concatenate([speeds, -speeds])
+    for seed in range(6):
+        rng = np.random.default_rng(100 + seed)
+        F = static_map_curve(v, **true) + 0.005 * rng.standard_normal(v.size)
+        res, _ = _fit_quiet(v, F)
+        assert not any(d["parameter"] == "fs" and d["code"] == "coverage" for d in res.diagnostics)
+        assert res.info["drop_p_value"] < 1e-6
+
+
+def test_a_force_of_the_wrong_sign_is_named():
+    """Reaction-force convention (force opposing the velocity): the finding says so."""
+    true = dict(fc=1.0, fs=1.6, vs=2e-3, sigma=3.0, delta=1.2)
+    speeds = np.geomspace(2e-4, 0.2, 10)
+    v = np.concatenate([speeds, -speeds])
+    F = -static_map_curve(v, **true)
+    res, _ = _fit_quiet(v, F)
+    assert any("opposite sign" in d["message"] for d in res.diagnostics)
+    good, _ = _fit_quiet(v, -F)
+    assert not any("opposite sign" in d["message"] for d in good.diagnostics)

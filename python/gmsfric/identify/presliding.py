@@ -54,6 +54,9 @@ from .results import IdentificationResult, autocorrelation_inflation, covariance
 #: Adjacent break displacements closer than this ratio are one block (not identifiable apart).
 MIN_KNOT_RATIO = 1.05
 
+#: The block-count search tries this many counts beyond the best one found so far (each way).
+SEARCH_BEYOND = 2
+
 
 @dataclass
 class VirginCurve:
@@ -115,6 +118,15 @@ def _record_si(t: ArrayLike, position: ArrayLike, force: ArrayLike, f: Mapping[s
         raise InvalidInputError("`time` must increase strictly")
     _check_varies(x, F)
     return t * f["time"], x * f["position"], F * f["force"]
+
+
+def _check_sign(vc: VirginCurve) -> None:
+    """A virgin curve that falls (the force change opposes the motion after most reversals) is
+    a force in the reaction convention: no block set has negative stiffness, so say so."""
+    if vc.g_bin.size and np.mean(vc.g_bin < 0) > 0.75 and vc.g_bin[-1] < 0:
+        raise IdentificationError("the force appears to have the opposite sign to the motion (after a reversal it changes against the "
+                                  "new direction): friction opposes the motion, and gmsfric expects the force applied to the axis (the "
+                                  "drive force, with the sign of the motion), not the friction's reaction on it; negate the force")
 
 
 def _check_varies(x: NDArray[np.float64], F: NDArray[np.float64]) -> None:
@@ -593,7 +605,9 @@ def _smoothed_position(x: NDArray[np.float64], turns: NDArray[np.int64], resolut
     keeps its full quantisation error)."""
     win = int(np.median(np.diff(turns)) / 100) | 1 if len(turns) > 1 else 1
     sigma_q = resolution / np.sqrt(12.0)
-    if win < 5:
+    # a record moving many counts a sample has no staircase to smooth; smoothing would only
+    # round its reversals (a triangle wave's corner by several samples' travel)
+    if win < 5 or float(np.median(np.abs(np.diff(x)))) > 10.0 * resolution:
         return x, np.full(x.size, sigma_q)
     gain = float(np.sqrt(np.sum(savgol_coeffs(win, 3) ** 2)))
     xs = savgol_filter(x, win, 3)
@@ -844,7 +858,7 @@ def _polish_gms(data: _HysteresisData, fit: BlockFit, mask: NDArray[np.bool_], *
 
 
 def _diagnose(findings: Findings, fit: BlockFit, vc: VirginCurve, params_si: Mapping[str, tuple[float, float]], chi2_dof: float, dof: int,
-              hi: float) -> None:
+              hi: float, break_steps: NDArray[np.float64] | None = None) -> None:
     nb = fit.k.size
     if not fit.admissible:
         findings.add("degenerate", f"{nb} blocks: {fit.reason}; fewer blocks describe these data", None)
@@ -854,8 +868,29 @@ def _diagnose(findings: Findings, fit: BlockFit, vc: VirginCurve, params_si: Map
     if fit.d[0] < 5 * vc.resolution:
         findings.add("coverage", f"block 1 breaks at {fit.d[0]:.3g} m, within 5 position resolutions ({vc.resolution:.3g} m): "
                                  "its stiffness is poorly determined", "k1")
+    for i, step in enumerate(() if break_steps is None else break_steps):
+        if fit.d[i] < step:
+            findings.add("coverage", f"block {i + 1} breaks at {fit.d[i]:.3g} m, less than the position moves in one sample where it breaks "
+                                     f"({step:.3g} m): the record cannot resolve it (it may stand for several blocks; sample faster or "
+                                     "move slower)", f"k{i + 1}")
     check_stderr(findings, params_si)
     check_chi2(findings, chi2_dof * dof, dof, what=" of the force fit")
+
+
+def _break_steps(t: NDArray[np.float64], x: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The position change per sample at the instants each block breaks (median over its
+    breaks; 0 for a block that never breaks): a block breaking within one such step is not
+    resolved by the sampling, whatever the encoder."""
+    z = _play(t, x, d)
+    sat = np.abs(z) >= d[None, :] * (1 - 1e-9)
+    onset = sat[1:] & ~sat[:-1]
+    dx = np.abs(np.diff(x))
+    out = np.zeros(d.size)
+    for i in range(d.size):
+        at = np.flatnonzero(onset[:, i])
+        if at.size:
+            out[i] = float(np.median(dx[at]))
+    return out
 
 
 # ----------------------------------------------------------------------------- the identifier
@@ -956,6 +991,7 @@ def fit_presliding(
 
     # 2-3. reversals and the virgin curve
     vc = build_virgin_curve(t_si, x_si, F_si, n_bins=n_bins, resolution=res_si)
+    _check_sign(vc)
     _, _, _, lo, hi = _virgin_points(vc)
     hi_force = max(_largest_half_swing(x_si, list(vc.turning_points)), hi)
 
@@ -1018,7 +1054,7 @@ def fit_presliding(
     params_si = {f"k{i + 1}": (float(k_si[i]), float(se_si[i])) for i in range(nb)}
     params_si.update({f"w{i + 1}": (float(w_si[i]), float(se_si[nb + i])) for i in range(nb)})
     findings = Findings()
-    _diagnose(findings, final, vc, params_si, chi2_dof, dof, hi_force)
+    _diagnose(findings, final, vc, params_si, chi2_dof, dof, hi_force, _break_steps(t_si, x_si, w_si / k_si))
     scale = np.concatenate((np.full(nb, kx / kf), np.full(nb, 1.0 / kf)))
     params = {name: (v * f, e * f) for (name, (v, e)), f in zip(params_si.items(), scale)}
     units = {**{f"k{i + 1}": _units.ratio(force_unit, position_unit) for i in range(nb)}, **{f"w{i + 1}": force_unit for i in range(nb)}}
@@ -1043,6 +1079,24 @@ def _determined(fit: BlockFit, mask: NDArray[np.bool_], data: _HysteresisData, r
     return bool(np.all(np.isfinite(rel)) and np.all(rel <= limit))
 
 
+def _added_knot_starts(data: _HysteresisData, fit: BlockFit, mask: NDArray[np.bool_], lo: float, hi: float, keep: int = 1) -> list[BlockFit]:
+    """Starts for one block more than ``fit``: its knots with one added in every gap (and at
+    both ends), ranked by the cost of the linear solve at those knots (one simulation each);
+    the ``keep`` best (each costs a full force fit)."""
+    edges = np.concatenate(([lo * 1.5], fit.d, [hi / 1.2]))
+    weight = fit.extra["weight"]
+    lin = _LinearBlocks(data.F[mask], weight, offset=True)
+    scored = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        if not b > a:
+            continue
+        d0 = np.sort(np.concatenate((fit.d, [np.sqrt(a * b)])))
+        k0, _, r = lin.solve(_play(data.t, data.x, d0)[mask])
+        scored.append((float(r @ r), BlockFit(np.maximum(k0, 1e-12 * max(float(k0.max()), 1e-300)), d0, float(r @ r), True)))
+    scored.sort(key=lambda s: s[0])
+    return [f for _, f in scored[:keep]]
+
+
 def _force_stage(data: _HysteresisData, vc: VirginCurve, fits: dict[int, list[BlockFit]], order: list[int], lo: float, hi: float, compare: bool,
                  progress: bool) -> tuple[int, BlockFit, BlockFit, NDArray[np.bool_], bool, dict[int, float]]:
     """Force fits: the first count in ``order`` whose blocks the record supports; with
@@ -1056,6 +1110,10 @@ def _force_stage(data: _HysteresisData, vc: VirginCurve, fits: dict[int, list[Bl
             return False
         vfit = next((f for f in fits[nb] if f.admissible), fits[nb][0])
         others = [f for f in fits[nb] if f is not vfit and f.admissible][:1]
+        if nb - 1 in runs:
+            # the force fit of one block fewer with a knot added: the virgin curve may have
+            # merged two blocks that the whole record tells apart
+            others += _added_knot_starts(data, runs[nb - 1][1], runs[nb - 1][2], lo, hi)
         fit, mask, virgin = _fit_hysteresis(data, vfit, others, list(vc.turning_points), lo, hi, vc.resolution, progress)
         # The admissibility test compares the blocks with each other and cannot see all of them
         # collapse: break forces that explain nothing of the record's force swing are no fit.
@@ -1084,19 +1142,25 @@ def _force_stage(data: _HysteresisData, vc: VirginCurve, fits: dict[int, list[Bl
 
         n = int(mask.sum())
         n_eff = n / autocorrelation_inflation(ref.extra["residual"])
-        tried = {chosen}
+
+        def criterion(nb: int) -> float:
+            return float(n_eff * np.log(max(score(nb), 1e-300) / n) + (2 * nb + 1) * np.log(n_eff))
+
         best = chosen
+        force_bic[best] = criterion(best)
+        # Each direction goes on past a worse, inadmissible or undetermined count (BIC need not
+        # be unimodal: a count that merges two blocks can be worse than both its neighbours),
+        # until ``SEARCH_BEYOND`` counts beyond the best so far.
         for step in (-1, 1):
             nb = chosen + step
-            while nb in fits and nb not in tried:
-                tried.add(nb)
-                if not run(nb) or (step > 0 and not _determined(runs[nb][1], runs[nb][2], data, vc.resolution)):
-                    break
-                force_bic[nb] = n_eff * np.log(score(nb) / n) + (2 * nb + 1) * np.log(n_eff)
-                force_bic.setdefault(best, n_eff * np.log(score(best) / n) + (2 * best + 1) * np.log(n_eff))
-                if force_bic[nb] >= force_bic[best]:
-                    break
-                best = nb
+            while nb in fits and abs(nb - best) <= SEARCH_BEYOND:
+                if nb not in runs:
+                    run(nb)
+                fit_nb = runs[nb][1] if nb in runs else None
+                if fit_nb is not None and fit_nb.admissible and (step < 0 or _determined(fit_nb, runs[nb][2], data, vc.resolution)):
+                    force_bic[nb] = criterion(nb)
+                    if force_bic[nb] < force_bic[best]:
+                        best = nb
                 nb += step
         chosen = best
     vfit, fit, mask, virgin = runs[chosen]

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
+from scipy import stats
+from scipy.optimize import least_squares, nnls
 
 from .. import curves
 from .. import units as _units
@@ -25,7 +26,7 @@ from ..errors import FitWarning, IdentificationError, InvalidInputError
 from ..models import StaticFriction, Stribeck
 from .diagnostics import Findings, check_bounds, check_chi2, check_stderr, emit
 from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
-from .sampling import estimate_resolution, quantum, white_noise_level
+from .sampling import plateau_resolution, quantum, white_noise_level
 
 NAMES = ("fc", "fs", "vs", "sigma", "delta")
 MIN_POINTS = 6
@@ -158,6 +159,51 @@ def _diagnose(findings: Findings, q: NDArray[np.float64], params: dict[str, tupl
         check_chi2(findings, chi2, dof, what=" of the static map (with the points' standard errors)", low=None)
     check_stderr(findings, params, skip=zero)
     return zero
+
+
+def _drop_significance(speed: NDArray[np.float64], force: NDArray[np.float64], weight: NDArray[np.float64], rss: float,
+                       known_errors: bool) -> float:
+    """p-value of the Stribeck drop: the fit against the map without one (``fs = fc``, i.e. the
+    line ``fc + sigma v``, fitted with ``fc, sigma >= 0``), by an F-test on the three parameters
+    ``fs, vs, delta`` (a chi2 test with known point errors).  A large p: the data show no drop,
+    so ``fs``, ``vs`` and ``delta`` are extrapolated, whatever their standard errors say."""
+    a = np.column_stack([np.ones_like(speed), speed]) * weight[:, None]
+    coef, _ = nnls(a, force * weight)
+    r0 = a @ coef - force * weight
+    rss0 = float(r0 @ r0)
+    dof = speed.size - len(NAMES)
+    if dof < 1:
+        return 1.0
+    gain = max(rss0 - rss, 0.0)
+    if known_errors:
+        # chi2 scaled by the residual when it exceeds the stated errors (as the covariance is)
+        scale = max(rss / dof, 1.0)
+        return float(stats.chi2.sf(gain / scale, 3))
+    if rss <= 1e-300:
+        return 0.0 if gain > 0 else 1.0
+    return float(stats.f.sf((gain / 3.0) / (rss / dof), 3, dof))
+
+
+def _check_drop(findings: Findings, p_drop: float, params: dict[str, tuple[float, float]], speed: NDArray[np.float64], units: dict[str, str]) -> None:
+    """Flag a Stribeck drop the data do not show (the map is then a line through the points)."""
+    if p_drop > DROP_P_VALUE and not findings.has("coverage", "vs"):
+        findings.add("coverage", f"the data show no significant Stribeck drop (p = {p_drop:.2g} against a line fc + sigma v; slowest point "
+                                 f"{speed.min():.3g} {units['vs']}): fs, vs and delta are not identified by these data, whatever their "
+                                 "standard errors (measure slower, down to where the friction rises)", "fs")
+
+
+def _flipped_sign(speed_signed: NDArray[np.float64], force: NDArray[np.float64]) -> bool:
+    """Most points' force opposes their velocity: a force in the reaction convention."""
+    return bool(np.mean(np.sign(speed_signed) * force < 0) > 0.75)
+
+
+#: A Stribeck drop whose F-test p-value exceeds this is not shown by the data.
+DROP_P_VALUE = 0.01
+
+#: What a force of the wrong sign is told.
+SIGN_MESSAGE = ("the force has the opposite sign to the velocity on most points: friction opposes the motion, and gmsfric expects the force "
+                "applied to the axis (the drive force that overcomes friction, with the sign of the motion), not the friction's reaction on "
+                "it; negate the force column")
 
 
 @dataclass
@@ -417,7 +463,7 @@ def find_plateaus(
     if max_window is None:
         max_window = (t[-1] - t[0]) / 50.0
     max_h = max(2, int(round(positive("max_window", max_window) / dt)))
-    resolution = estimate_resolution(x)
+    resolution = plateau_resolution(x)
     q = quantum(x)
     if min_travel is None:
         min_travel = 2.0 * counts * resolution
@@ -550,7 +596,12 @@ def fit_static_map(
     if chi2 is not None:
         info["chi2_per_dof"] = chi2 / dof
     findings = Findings()
+    if _flipped_sign(v, F):
+        findings.add("ordering", SIGN_MESSAGE, None)
     zero = _diagnose(findings, q, params, speed / kv, delta_bounds, chi2, dof, units)
+    p_drop = _drop_significance(speed, mag, w, float(r.fun @ r.fun), known)
+    info["drop_p_value"] = p_drop
+    _check_drop(findings, p_drop, params, speed / kv, units)
     for name in zero:
         params[name] = (0.0, params[name][1])
     if per_direction:
