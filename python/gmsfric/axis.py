@@ -229,7 +229,8 @@ class Effects:
 @dataclass(frozen=True)
 class AxisUnits:
     """How the axis is shown: ``kind`` ``"linear"`` (m, N, kg) or ``"rotary"`` (rad, N m, kg m^2),
-    and the drive command's unit. Values inside are always SI."""
+    and the drive command's unit: ``"V"``, ``"A"``, or the force's (``"N"``, ``"N m"``) when the
+    command is the force itself (then ``plant.force_gain`` is 1 N/N). Values inside are always SI."""
 
     kind: Literal["linear", "rotary"] = "linear"
     command: str = "V"
@@ -517,7 +518,24 @@ def _decode_axis(p: Any) -> AxisModel:
     if not isinstance(provenance, Mapping):
         raise ModelFormatError(f"{p.source}: \"provenance\" must be an object, got {show(provenance)}")
     rotary = p.rotary
+    from .model_io import _drive_of
+
+    command = options.get("command_unit", "V")
+    if not isinstance(command, str):
+        raise ModelFormatError(f"{p.source}: \"options\".\"command_unit\" must be a unit string, got {show(command)}")
+    try:
+        command_drive = _units.drive_base(command, name="command_unit")
+    except _units.UnitError as exc:
+        raise ModelFormatError(f"{p.source}: {exc}") from None
+    drive = _drive_of(p, "plant.")
+    if drive != command_drive:
+        raise ModelFormatError(f"{p.source}: the command is in {command} but the plant's gains are per {drive}: "
+                               "a force gain per one drive applied to a command in another would scale the friction")
+    # a force command (the run gave its drive as a force) keeps its drive on the plant; a volt
+    # or ampere axis model keeps the plant as it was built
     plant = Plant(*(p.get(f"plant.{n}", _QUANTITY[f"plant.{n}"]) for n in ("a", "b", "c", "delay", "force_gain")))
+    if drive in ("N", "N m"):
+        plant = dataclasses.replace(plant, drive=drive)
     friction = None
     fkind = options.get("friction")
     if fkind is not None:
@@ -571,7 +589,7 @@ def _decode_axis(p: Any) -> AxisModel:
             cov = Covariance(tuple(names), np.asarray(c["matrix"], dtype=float) * np.outer(f, f))
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelFormatError(f"{p.source}: malformed covariance: {exc}") from None
-    units = AxisUnits("rotary" if rotary else "linear", str(options.get("command_unit", "V")))
+    units = AxisUnits("rotary" if rotary else "linear", command)
     return AxisModel(plant, friction, Effects(**kw), units, cov, dict(provenance))
 
 

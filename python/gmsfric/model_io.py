@@ -259,16 +259,24 @@ def _dec_plant(p: Parameters) -> Plant:
                  rotary=p.rotary, drive=_drive_of(p))
 
 
-def _drive_of(p: Parameters) -> str:
-    """``"V"`` or ``"A"``: the drive unit the document states for the plant gain."""
-    entry = p.document.get("parameters", {}).get("a")
-    unit = entry.get("unit") if isinstance(entry, Mapping) else None
-    if isinstance(unit, str):
-        try:
-            return "A" if _units.parse(unit).dim[4] != 0 else "V"
-        except _units.UnitError:
-            pass  # reported by p.get
-    return "V"
+def _drive_of(p: Parameters, prefix: str = "") -> str:
+    """The SI drive unit (``"V"``, ``"A"``, or ``"N"`` / ``"N m"`` for a force command) the
+    document states for the plant gain; the force gain must be per the same drive (a gain per
+    volt beside a plant per newton would scale the friction by a factor the file hides)."""
+    params = p.document.get("parameters", {})
+    drives = {}
+    for name, quantity in (("a", "plant_gain"), ("force_gain", "force_gain")):
+        entry = params.get(prefix + name)
+        unit = entry.get("unit") if isinstance(entry, Mapping) else None
+        if isinstance(unit, str):
+            try:
+                drives[name] = _units.drive_of(unit, quantity, rotary=p.rotary)
+            except _units.UnitError:
+                pass  # reported by p.get
+    if len(set(drives.values())) > 1:
+        raise ModelFormatError(f"{p.source}: `{prefix}a` is per {drives['a']} but `{prefix}force_gain` per {drives['force_gain']}: "
+                               "both must be per the same drive input")
+    return drives.get("a", drives.get("force_gain", "V"))
 
 
 register_kind("static_map", StaticFriction, _enc_static, _dec_static)
@@ -299,7 +307,7 @@ def _own_axis(model: Any) -> bool | None:
 
 def _own_drive(model: Any) -> str | None:
     own = getattr(model, "drive", None)
-    if isinstance(own, str) and own in ("V", "A"):
+    if isinstance(own, str) and own in _units.DRIVES:
         return own
     command = getattr(getattr(model, "units", None), "command", None)
     if isinstance(command, str):
@@ -326,8 +334,8 @@ def _drive_for(model: Any, drive: str | None, where: str = "`model`") -> str:
     own = _own_drive(model)
     if drive is not None:
         choice_drive = str(drive)
-        if choice_drive not in ("V", "A"):
-            raise InvalidInputError(f"`drive` must be \"V\" or \"A\", got {show(drive)}")
+        if choice_drive not in _units.DRIVES:
+            raise InvalidInputError(f"`drive` must be one of {', '.join(repr(d) for d in _units.DRIVES)}, got {show(drive)}")
         if own is not None and isinstance(getattr(model, "drive", None), str) and own != choice_drive:
             raise InvalidInputError(f"`drive`={choice_drive!r} would relabel {where}, driven in {own}, as driven in {choice_drive}")
         return choice_drive
@@ -352,8 +360,9 @@ def model_to_dict(
         The axis is rotary: SI units are rad, N m, N m/rad ... instead of m, N, N/m.  Default: the
         model's own (``model.rotary``, an axis model's ``units.kind``); given, it must agree with
         it (a model is never relabeled).  For a kind that states no axis, it decides.
-    drive : {"V", "A"}, optional
-        SI unit of the drive input (plant gain and force gain); default the plant's own
+    drive : {"V", "A", "N", "N m"}, optional
+        SI unit of the drive input (plant gain and force gain; ``"N"``, ``"N m"`` on a rotary
+        axis, when the drive command is the force itself); default the plant's own
         (``Plant.drive``), else ``"V"``.
     covariance : (names, matrix, units), optional
         Covariance of identified parameters, in SI, with each name's SI unit.
@@ -520,7 +529,9 @@ def _legacy_identify(doc: Mapping[str, Any], source: str) -> Any:
         missing = [n for n in ("a", "b", "c", "delay") if n not in si]
         if missing:
             raise ModelFormatError(f"{source}: plant parameter(s) {missing} missing")
-        drive = "A" if _units.parse(unit("a")).dim[4] != 0 else "V"
+        drive = _units.drive_of(unit("a"), "plant_gain", rotary=rotary, name="units['a']")
+        if _units.drive_of(unit("force_gain"), "force_gain", rotary=rotary, name="units['force_gain']") != drive:
+            raise ModelFormatError(f"{source}: `a` is in {unit('a')} but `force_gain` in {unit('force_gain')}: both must be per the same drive input")
         return Plant(si["a"], si["b"], si["c"], si["delay"], si["force_gain"], rotary=rotary, drive=drive)
     except ModelFormatError:
         raise

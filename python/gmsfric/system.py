@@ -69,8 +69,9 @@ class Plant(NativeBacked):
     rotary : bool, optional (keyword)
         The plant of a rotary axis (rad, N m per drive unit): saved in the model file's
         ``"axis"`` and read back by ``load_model``.
-    drive : {"V", "A"}, optional (keyword)
-        SI unit of the drive input (a voltage or a current command), for the model file's units.
+    drive : {"V", "A", "N", "N m"}, optional (keyword)
+        SI unit of the drive input (a voltage or a current command, or the force itself: ``"N"``,
+        ``"N m"`` on a rotary axis, with ``force_gain`` 1), for the model file's units.
     """
 
     _native: ClassVar[_gmsfric.PlantSpec]
@@ -86,8 +87,8 @@ class Plant(NativeBacked):
     def __post_init__(self) -> None:
         if not isinstance(self.rotary, (bool, np.bool_)):
             raise InvalidInputError(f"`rotary` must be True or False, got {type(self.rotary).__name__}")
-        if not isinstance(self.drive, str) or self.drive not in ("V", "A"):
-            raise InvalidInputError(f"`drive` must be \"V\" or \"A\", got {show(self.drive)}")
+        if not isinstance(self.drive, str) or self.drive not in ("V", "A", "N", "N m"):
+            raise InvalidInputError(f"`drive` must be \"V\", \"A\", \"N\" or \"N m\", got {show(self.drive)}")
         for name in ("a", "b", "c", "delay", "force_gain"):
             object.__setattr__(self, name, number(name, getattr(self, name)))
         object.__setattr__(self, "_native", _gmsfric.PlantSpec(*self.params))

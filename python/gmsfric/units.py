@@ -36,6 +36,9 @@ __all__ = [
     "from_si",
     "factor",
     "si_unit",
+    "drive_base",
+    "drive_of",
+    "DRIVES",
     "is_rotary",
     "check",
     "ratio",
@@ -245,8 +248,10 @@ def parse(unit: str, name: str = "unit") -> Unit:
 _F_ROT = _mul(_N, _L)  # torque, N m
 
 
-def _per_drive(d: Dim) -> tuple[Dim, Dim]:
-    return (_mul(d, _U, -1), _mul(d, _I, -1))
+def _per_drive(d: Dim, force: Dim) -> tuple[Dim, Dim, Dim]:
+    """``d`` per unit of drive input: a voltage, a current, or a force (``force``: N, or N m on a
+    rotary axis) when the run's drive command is the force itself (``force_gain`` 1 N/N)."""
+    return (_mul(d, _U, -1), _mul(d, _I, -1), _mul(d, force, -1))
 
 
 @dataclass(frozen=True)
@@ -286,9 +291,9 @@ QUANTITIES: dict[str, Quantity] = {
         _q("drive", (_U, _I), (_U, _I), "V", "V", "V, mV (a drive command) or A"),
         _q("voltage", _U, _U, "V", "V", "V, mV"),
         _q("current", _I, _I, "A", "A", "A, mA"),
-        _q("plant_gain", _per_drive(_mul(_L, _pow(_T, 2), -1)), _per_drive(_mul(_A, _pow(_T, 2), -1)), "m/(V s^2)", "rad/(V s^2)",
-           "m/(V s^2), mm/(V s^2) or rad/(V s^2)"),
-        _q("force_gain", _per_drive(_N), _per_drive(_F_ROT), "N/V", "N m/V", "N/V, N/A or N m/V"),
+        _q("plant_gain", _per_drive(_mul(_L, _pow(_T, 2), -1), _N), _per_drive(_mul(_A, _pow(_T, 2), -1), _F_ROT), "m/(V s^2)", "rad/(V s^2)",
+           "m/(V s^2), mm/(V s^2), m/(N s^2) or rad/(V s^2)"),
+        _q("force_gain", _per_drive(_N, _N), _per_drive(_F_ROT, _F_ROT), "N/V", "N m/V", "N/V, N/A, N/N or N m/V"),
         _q("force_rate", _mul(_N, _T, -1), _mul(_F_ROT, _T, -1), "N/s", "N m/s", "N/s or N m/s"),
         _q("inverse_position", _pow(_L, -1), _pow(_A, -1), "1/m", "1/rad", "1/m or 1/rad"),
         # a viscous coefficient per unit of speed (heating: viscous shift per m/s of low-passed speed)
@@ -406,21 +411,59 @@ def from_si(values: ArrayLike, unit: str, quantity: str, *, rotary: bool | None 
     return np.asarray(values, dtype=np.float64) / f
 
 
+#: SI drive units: a voltage or a current command, or the force itself (N; N m on a rotary axis)
+#: when a run gives its drive as a force column.
+DRIVES = ("V", "A", "N", "N m")
+
+#: SI units of the drive-dependent quantities when the drive command is a force.
+_FORCE_DRIVEN = {
+    False: {"drive": "N", "plant_gain": "m/(N s^2)", "force_gain": "N/N"},
+    True: {"drive": "N m", "plant_gain": "rad/(N m s^2)", "force_gain": "N m/(N m)"},
+}
+
+
+def _check_drive(drive: str, rotary: bool) -> None:
+    choice("drive", drive, DRIVES)
+    if drive in ("N", "N m") and (drive == "N m") != bool(rotary):
+        raise UnitError(f"`drive`: a force drive is {'N m (a torque)' if rotary else 'N'} on a {'rotary' if rotary else 'linear'} axis, got {drive!r}")
+
+
 def si_unit(quantity: str, rotary: bool = False, *, drive: str = "V") -> str:
     """The SI unit string of ``quantity`` (``"N s/m"``; rotary ``"N m s/rad"``).  ``drive`` is the
-    drive input's SI unit (``"V"`` or ``"A"``) for the drive-dependent quantities."""
+    drive input's SI unit (one of :data:`DRIVES`: ``"V"``, ``"A"``, or ``"N"`` / ``"N m"`` for a
+    force command on a linear / rotary axis) for the drive-dependent quantities."""
     q = _quantity(quantity)
     s = q.si_rotary if rotary else q.si_linear
     if quantity in _DRIVE_SENSITIVE:
-        choice("drive", drive, ("V", "A"))
+        _check_drive(drive, rotary)
+        if drive in ("N", "N m"):
+            return _FORCE_DRIVEN[bool(rotary)][quantity]
         s = s.replace("V", drive)
     return s
 
 
 def drive_base(unit: str, *, name: str = "unit") -> str:
-    """``"V"`` or ``"A"``: the SI drive unit of a drive-input unit (``mV`` -> ``V``)."""
+    """The SI drive unit (one of :data:`DRIVES`) of a drive-input unit: ``mV`` -> ``V``, ``mA``
+    -> ``A``, and a force unit (a drive command that is the force itself) ``mN`` -> ``N``,
+    ``N mm`` -> ``N m``."""
+    u = parse(unit, name)
+    if u.dim == _N:
+        return "N"
+    if u.dim == _F_ROT:
+        return "N m"
     u = check(unit, "drive", name=name)
     return "V" if u.dim == _U else "A"
+
+
+def drive_of(unit: str, quantity: str, *, rotary: bool, name: str = "unit") -> str:
+    """The SI drive unit (one of :data:`DRIVES`) a ``plant_gain`` or ``force_gain`` unit is per:
+    ``mm/(V s^2)`` -> ``V``, ``N/A`` -> ``A``, ``N/N`` -> ``N`` (``N m`` on a rotary axis)."""
+    if quantity not in ("plant_gain", "force_gain"):
+        raise InvalidInputError(f"`quantity` must be \"plant_gain\" or \"force_gain\", got {quantity!r}")
+    u = check(unit, quantity, rotary=rotary, name=name)
+    q = QUANTITIES[quantity]
+    dims = q.rotary if rotary else q.linear
+    return ("V", "A", "N m" if rotary else "N")[dims.index(u.dim)]
 
 
 def ratio(numerator: str, denominator: str) -> str:

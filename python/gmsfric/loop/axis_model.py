@@ -21,6 +21,7 @@ inverse-model term                    in the AxisModel
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from typing import Any
 
@@ -55,7 +56,10 @@ def to_axis_model(model: LinearModel, est: Signals, *, gain: float | None = None
     est : Signals
         The estimation run (its travel defines the position bases, its duration the linear drift).
     gain : float, optional
-        Drive gain (N per command unit) when the runs were given as commands; 1 otherwise.
+        Drive gain (N per command unit; N m on a rotary axis) when the runs were given as
+        commands (the command unit is then V).  None when they were given as a force: the
+        command is then the force itself, the model's command unit N (N m) and its force gain
+        1 N/N, never a drive gain the data do not state.
     kind : {"linear", "rotary"}
     provenance : dict, optional
 
@@ -123,6 +127,10 @@ def to_axis_model(model: LinearModel, est: Signals, *, gain: float | None = None
         raise InvalidInputError(f"the fitted mass M = {mass:.4g} is not positive: the model cannot be simulated")
     delay = max(model.delay - model.extras.get("sampling_hold_s", 0.0), 0.0)
     plant = Plant.from_mass(mass, force_gain=gain if gain is not None else 1.0, delay=delay)
+    command = "V"
+    if gain is None:
+        command = "N m" if kind == "rotary" else "N"
+        plant = dataclasses.replace(plant, drive=command)
     friction = StaticFriction(Stribeck(clamp("Fc", fc), clamp("Fs", fs), vs, delta), sigma=clamp("Fv", theta.get("Fv", 0.0)), offset=offset)
     cov = None
     if model.cov is not None and np.all(np.isfinite(model.cov)):
@@ -131,4 +139,4 @@ def to_axis_model(model: LinearModel, est: Signals, *, gain: float | None = None
         idx = [i for i, n in enumerate(model.param_names) if n in names]
         if idx:
             cov = Covariance(tuple(names[model.param_names[i]] for i in idx), model.cov[np.ix_(idx, idx)])
-    return AxisModel(plant, friction, Effects(**effects), AxisUnits(kind=kind), cov, provenance or {})  # type: ignore[arg-type]
+    return AxisModel(plant, friction, Effects(**effects), AxisUnits(kind=kind, command=command), cov, provenance or {})  # type: ignore[arg-type]

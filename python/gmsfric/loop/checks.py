@@ -6,6 +6,12 @@ and an offset are then one number), a clipped drive, a time or position column i
 than declared.  These checks put such findings in the result's ``diagnostics`` (``{"code",
 "parameter", "message"}`` in the JSON) and warn each with :class:`~gmsfric.errors.FitWarning`;
 the CLI prints them under the table.  They only report: the selection does not use them.
+
+:func:`check_closed_loop` judges the closed-loop replay (``--reference --kp --kv``): a replay
+whose force error is far beyond the inverse model's is a controller, gain or unit that does not
+match the measured loop (``poor_fit``, parameter ``closed_loop``), and a replayed drive that sits
+at its limit is a saturation the inverse model never saw (``saturation``, parameter
+``closed_loop``).
 """
 
 from __future__ import annotations
@@ -17,12 +23,30 @@ import numpy as np
 from ..identify.diagnostics import Findings, check_saturation
 
 if TYPE_CHECKING:
+    from ..system import PID, Cascade
     from .results import LoopResult
 
 #: Relative rms error (%) of the final model on the moving rows of the estimation run above which
 #: it explains too little of the force for its parameters to describe the axis.  On all rows the
 #: error of a good fit can exceed it: a stuck axis holds any force up to break-away.
 POOR_FIT_PCT = 50.0
+
+#: Closed-loop force error (%) of a replay above which the simulated loop does not behave like
+#: the measured one, whatever the inverse model's error.  A model whose inverse error is a few %
+#: replays within a few % on a loop that matches (EMPS: 3 %); many times more is a controller
+#: gain in other units than the drive's, a wrong --gain, or a model the loop cannot hold.
+CLOSED_LOOP_POOR_PCT = 50.0
+
+#: Below :data:`CLOSED_LOOP_POOR_PCT`, a replay error above this many times the model's inverse
+#: error (on the moving rows of the estimation run) and above :data:`CLOSED_LOOP_FLOOR_PCT` is
+#: reported too: a 40 % replay of a 1 % model is as far off as a 130 % replay of a 3 % one.
+CLOSED_LOOP_RATIO = 10.0
+
+#: Replay errors (%) never reported by the ratio alone (quantisation and filtering leave a few %).
+CLOSED_LOOP_FLOOR_PCT = 20.0
+
+#: Share of a replay's samples at the drive limit beyond which the replay counts as saturated.
+CLOSED_LOOP_SATURATED = 0.01
 
 #: Correlation of two baseline parameters beyond which the run does not tell them apart.
 CONFOUNDED = 0.999
@@ -83,4 +107,76 @@ def check_result(result: "LoopResult") -> Findings:
                     found.add("degenerate", f"{names[i]} and {names[j]} are not told apart by this run (correlation {corr:+.4f}){hint}: "
                                             "only a combination of them is determined",
                               f"{names[i]},{names[j]}")
+    return found
+
+
+def check_closed_loop(result: "LoopResult", controller: "PID | Cascade | None" = None) -> Findings:
+    """Findings about ``result``'s closed-loop replays (``result.closed_loop`` and
+    ``closed_loop_runs``); empty without them.
+
+    Parameters
+    ----------
+    result : LoopResult
+        A loop result whose closed-loop replays were run.
+    controller : PID or Cascade, optional
+        The replays' controller: its output limits are the drive limits (a cascade's act on
+        the drive, after the input disturbance).
+
+    Returns
+    -------
+    Findings
+        ``poor_fit`` (parameter ``closed_loop``) when a replay's force error exceeds
+        :data:`CLOSED_LOOP_POOR_PCT`, or :data:`CLOSED_LOOP_FLOOR_PCT` and
+        :data:`CLOSED_LOOP_RATIO` times the model's inverse error; ``saturation`` (parameter ``closed_loop``) when a replayed
+        drive sits at a finite limit on more than :data:`CLOSED_LOOP_SATURATED` of its samples.
+    """
+    found = Findings()
+    if not result.closed_loop:
+        return found
+    split = getattr(result, "split", None)
+    models = {"baseline": getattr(result, "baseline", None), "final": getattr(result, "final", None)}
+    inverse: dict[str, float] = {}
+    for mname, model in models.items():
+        if split is not None and model is not None and getattr(model, "theta", None) is not None:
+            inverse[mname] = float(split.errors_moving(model)[0])
+    worst: tuple[float, str, str] | None = None
+    for mname, runs in result.closed_loop.items():
+        for rname, err in runs.items():
+            f = float(err.get("force_pct", np.nan))
+            far = f > CLOSED_LOOP_POOR_PCT or (mname in inverse and f > CLOSED_LOOP_FLOOR_PCT and f > CLOSED_LOOP_RATIO * inverse[mname])
+            if np.isfinite(f) and far and (worst is None or f > worst[0]):
+                worst = (f, mname, rname)
+    if worst is not None:
+        f, mname, rname = worst
+        err = result.closed_loop[mname][rname]
+        against = f", against {inverse[mname]:.1f} % for the inverse model on the estimation run" if mname in inverse else ""
+        speed = "rad/s" if result.rotary else "m/s"
+        if result.split.est.data.gain is not None:
+            hint = f"--kv is in command units per {speed}, --kp in 1/s, and --gain and --drive-limit"
+        else:  # the drive is the force: a gain in volts per m/s is off by the drive's gain
+            force = "N m" if result.rotary else "N"
+            hint = (f"--kv is in {'N m s/rad' if result.rotary else 'N s/m'} (the drive is the force: a gain in command units per {speed} "
+                    f"is off by the drive's gain), --kp in 1/s, and --drive-limit in {force}")
+        found.add("poor_fit", f"the closed-loop replay of the {mname} model on the {rname} run misses the force by {f:.0f} % "
+                              f"(acceleration {err.get('acceleration_pct', float('nan')):.0f} %){against}: the simulated loop does not behave "
+                              f"like the measured one, so its errors say nothing about the model; check that {hint}, "
+                              "and that a run's input disturbance is given (--disturbance)",
+                  "closed_loop")
+    if controller is not None:
+        lo, hi = float(getattr(controller, "u_min", -np.inf)), float(getattr(controller, "u_max", np.inf))
+        for (mname, rname), res in result.closed_loop_runs.items():
+            u = getattr(res, "command", None)
+            if u is None or u.size == 0:
+                continue
+            span = max(abs(lo) if np.isfinite(lo) else 0.0, abs(hi) if np.isfinite(hi) else 0.0)
+            at = np.zeros(u.size, dtype=bool)
+            for limit in (lo, hi):
+                if np.isfinite(limit):
+                    at |= np.abs(u - limit) <= 1e-9 * max(span, 1.0)
+            share = float(at.mean())
+            if share > CLOSED_LOOP_SATURATED:
+                found.add("saturation", f"the closed-loop replay of the {mname} model on the {rname} run holds the drive at its limit "
+                                        f"on {share:.1%} of the samples: the replay is then the limit's, not the model's "
+                                        "(check --drive-limit and the units of --kv)", "closed_loop")
+                break
     return found

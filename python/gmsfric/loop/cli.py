@@ -13,9 +13,10 @@ from typing import Any
 from .. import units as _units
 from ..cli import Run, declare_files, fraction, positive_float
 from ..errors import DataError, FitWarning
-from ..identify.diagnostics import format_block
+from ..identify.diagnostics import emit, format_block
 from ..io import read_table
 from ..system import Cascade
+from .checks import check_closed_loop
 from .closedloop import closed_loop_report
 from .data import load_axis_data
 from .idim import Preprocessing
@@ -36,9 +37,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--time", required=True, metavar="COL")
     p.add_argument("--position", required=True, metavar="COL")
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--force", metavar="COL", help="force column (N)")
-    g.add_argument("--command", dest="command_col", metavar="COL", help="drive command column (needs --gain)")
-    p.add_argument("--gain", metavar="G", help="drive gain, N per command unit: a number or a scalar name in the file")
+    g.add_argument("--force", metavar="COL", help="force column (in --force-unit): the drive is then the force itself, so the "
+                   "closed-loop --kv is in N s/m, --drive-limit in N (N m s/rad, N m on a rotary axis), --disturbance in --force-unit")
+    g.add_argument("--command", dest="command_col", metavar="COL", help="drive command column (needs --gain); the closed-loop gains, "
+                   "--drive-limit and --disturbance are then in command units")
+    p.add_argument("--gain", metavar="G", help="drive gain, N (N m on a rotary axis) per command unit: a number or a scalar name in the file")
     p.add_argument("--time-unit", default="s")
     p.add_argument("--position-unit", default="m")
     p.add_argument("--force-unit", default=None, help="unit of the force column (default N, or N m on a rotary axis)")
@@ -52,11 +55,14 @@ def register(subparsers: Any) -> None:
                    help="position filter cut-off (Hz); default min(100 Hz, fs/10), and below 1 kHz the best of 0.1, 0.2, 0.3 x fs by cross-validation on EST")
     cl = p.add_argument_group("closed-loop simulation (optional: needs a reference and a cascade controller)")
     cl.add_argument("--reference", metavar="COL", help="reference position column (with --kp and --kv)")
-    cl.add_argument("--disturbance", metavar="COL", help="input disturbance column of the validation run (command units), e.g. pulses_N; "
-                    "needs --validate")
-    cl.add_argument("--kp", metavar="K", help="cascade position gain (1/s): number or scalar name")
-    cl.add_argument("--kv", metavar="K", help="cascade velocity gain (command per m/s): number or scalar name")
-    cl.add_argument("--drive-limit", type=positive_float, default=None, help="symmetric drive limit (command units)")
+    cl.add_argument("--disturbance", metavar="COL", help="input disturbance column of the validation run, added to the controller "
+                    "output: command units with --command (e.g. EMPS's pulses_N), --force-unit with --force; needs --validate")
+    cl.add_argument("--kp", metavar="K", help="cascade position gain u = kv (kp (r - q) - qdot), in 1/s: number or scalar name")
+    cl.add_argument("--kv", metavar="K", help="cascade velocity gain, per m/s (per rad/s on a rotary axis) whatever --position-unit: "
+                    "command units per m/s with --command (EMPS: V s/m); with --force the drive is the force, so N s/m "
+                    "(N m s/rad); number or scalar name")
+    cl.add_argument("--drive-limit", type=positive_float, default=None, help="symmetric drive limit: command units with --command, "
+                    "N (N m on a rotary axis) with --force")
     sim = p.add_argument_group("simulation error (optional)")
     sim.add_argument("--fit", choices=("inverse", "simulation"), default="inverse",
                      help="simulation: after the inverse-model selection, refine the baseline and final models by closed-loop "
@@ -130,6 +136,10 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
             result.closed_loop, result.closed_loop_runs = closed_loop_report({"baseline": result.baseline, "final": result.final}, runs, ctrl)
     if args.fit == "simulation" or args.open_loop:
         result = add_simulation(result, ctrl, fit=args.fit == "simulation", open_loop=args.open_loop, progress=run.progress)
+    if ctrl is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FitWarning)  # printed under the table instead
+            emit(result, check_closed_loop(result, ctrl))
     out = sys.stderr if args.json == "-" else sys.stdout  # stdout carries the JSON alone
     print(result.table(), file=out)
     block = format_block(result.diagnostics)

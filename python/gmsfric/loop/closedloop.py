@@ -65,8 +65,8 @@ def simulate_model(model: LinearModel, sig: Signals, controller: PID | Cascade, 
         Relative errors (%) ``position``, ``velocity``, ``acceleration`` (both signals
         filtered and differentiated the same way) and ``force``.
     """
-    gain = sig.data.gain if sig.data.gain is not None else 1.0
-    return simulate_axis(to_axis_model(model, est if est is not None else sig, gain=gain), sig, controller)
+    base = est if est is not None else sig
+    return simulate_axis(to_axis_model(model, base, gain=base.data.gain, kind="rotary" if base.data.rotary else "linear"), sig, controller)
 
 
 def simulate_axis(axis: AxisModel, sig: Signals, controller: PID | Cascade) -> tuple[ClosedLoopResult, dict[str, float]]:

@@ -44,7 +44,8 @@ class AxisData:
         given that way; needed to simulate the run in closed loop.
     reference, disturbance : ndarray or None
         Optional reference position (m) and input disturbance (input units, added to the
-        controller output), for the closed-loop simulation.
+        controller output: command units, or N when the run gave a force), for the closed-loop
+        simulation.
     rotary : bool
         A rotary axis: positions in rad and forces in N m (torques) instead of m and N.
     timing : dict
@@ -195,8 +196,9 @@ def load_axis_data(
         Drive gain, force per command unit (N/unit): a number or the name of a scalar in the file.
     reference, disturbance : str, optional
         Columns of the reference position (same unit as ``position``) and of an input
-        disturbance added to the controller output (command units), used only for the
-        closed-loop simulation.
+        disturbance added to the controller output (command units with ``command``; with
+        ``force`` the drive is the force, so ``force_unit``), used only for the closed-loop
+        simulation.
     time_unit, position_unit, force_unit : str
         Units in the file, any that :mod:`gmsfric.units` reads (``s``, ``ms``; ``m``, ``mm``,
         ``um``; ``N``, ``mN``, ``kN``).  A rotary axis gives its position in ``rad`` or ``deg`` and
@@ -252,7 +254,8 @@ def load_axis_data(
         command=cols.get("command"),
         gain=g,
         reference=None if reference is None else cols["reference"] * kq,
-        disturbance=cols.get("disturbance"),
+        # with a force column the drive is the force: its disturbance is a force too, in SI
+        disturbance=None if disturbance is None else cols["disturbance"] * (1.0 if command is not None else kf),
         meta=dict(table.scalars),
         rotary=rotary,
     )

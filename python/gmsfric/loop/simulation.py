@@ -174,9 +174,8 @@ def add_simulation(result: LoopResult, controller: PID | Cascade | None, *, fit:
         raise InvalidInputError("refining by closed-loop simulation needs the controller (and a reference in the runs)")
     out = SimulationLoopResult(**{f.name: getattr(result, f.name) for f in fields(LoopResult)})
     est = result.split.est
-    gain = est.data.gain if est.data.gain is not None else 1.0
     kind = "rotary" if result.rotary else "linear"
-    models = {"baseline": to_axis_model(result.baseline, est, gain=gain, kind=kind, provenance=result.provenance),
+    models = {"baseline": to_axis_model(result.baseline, est, gain=est.data.gain, kind=kind, provenance=result.provenance),
               "final": LoopResult.axis_model(result)}
     has_val = result.split.val is not est
     if fit:
