@@ -256,7 +256,7 @@ def test_times_whose_step_overflows_are_refused():
         (lambda: g.simulate_closed_loop(g.Plant(1, 1, 0), None, None, None, "1", feedforward=np.ones(3)), r"`dt` must be a real number"),
         (lambda: batch.simulate_batch(g.Plant(1, 1, 0), None, None, None, "1", feedforward=np.ones(3)), r"`dt` must be a real number"),
         (lambda: g.model_io.model_to_dict(g.Plant(1, 1, 0), drive=np.array([])), r"`drive` must be one of 'V', 'A'"),
-        (lambda: g.model_io.model_to_dict(g.Plant(1, 1, 0), rotary=np.ones(2)), r"`rotary` must be True or False"),
+        (lambda: g.model_io.model_to_dict(g.Plant(1, 1, 0), rotary=np.ones(2)), r"`rotary` must be True, False or None"),
         (lambda: g.model_io.model_from_dict(g.model_io.model_to_dict({"p": g.Plant(1, 1, 0)}), part=["p"]), r"`part` must be the name"),
     ],
 )
