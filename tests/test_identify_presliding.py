@@ -184,3 +184,25 @@ def test_resolution_of_a_fine_encoder_and_of_a_smooth_sinusoid():
     assert estimate_resolution(sine) < 1e-9
     noisy = sine + 1e-7 * np.random.default_rng(0).standard_normal(sine.size)
     assert estimate_resolution(noisy) == pytest.approx(1e-7, rel=0.15)
+
+
+@pytest.mark.parametrize("slip_law", ["time", "displacement"])
+def test_the_default_slip_rate_does_not_depend_on_the_sample_rate(slip_law):
+    """Without a Stribeck curve the GMS attraction ``c`` is chosen fast against the blocks; the same
+    record decimated 4x must give the same model (old code: ``sum(w) / dt``, 4x smaller, and in
+    N/s whatever the slip law).  A slipping block must relax within a fraction of its smallest
+    break displacement, as the Maxwell-slip blocks fitted do."""
+    d = np.array([2e-6, 2e-5, 1.5e-4])
+    w = np.array([3.0, 5.0, 4.0])
+    t, x, F = _triangle_test(d, w, [3e-5, 8e-4], 2000, 3, 1e-8, 2e-3, seed=5)
+    full = fit_presliding(t, x, F, slip_law=slip_law, progress=False)
+    coarse = fit_presliding(t[::4], x[::4], F[::4], slip_law=slip_law, progress=False)
+    assert full.info["n_blocks"] == coarse.info["n_blocks"] == 3
+    # tolerance: the fitted smallest break displacement and the top speed differ by a few % between the two
+    assert coarse.info["c"] == pytest.approx(full.info["c"], rel=0.1)
+    d_min = min(full.info["knots"])
+    if slip_law == "displacement":
+        assert 1.0 / full.info["c"] <= 0.2 * d_min
+    else:
+        top = np.percentile(np.abs(np.diff(x)) / np.diff(t), 99)
+        assert full.info["break_force"] * top / full.info["c"] <= 0.2 * d_min

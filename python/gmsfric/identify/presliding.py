@@ -788,6 +788,27 @@ def _hysteresis_covariance(fit: BlockFit, mask: NDArray[np.bool_], x: NDArray[np
 # ----------------------------------------------------------------------------- 7. GMS polish
 
 
+#: A slipping block without a Stribeck curve relaxes to its level within this fraction of the
+#: smallest break displacement (at the record's top speed with the time law): the Maxwell-slip
+#: limit, a property of the contact and not of the logging rate.
+FAST_SLIP_FRACTION = 0.1
+
+
+def _fast_slip(fit: BlockFit, t: NDArray[np.float64], x: NDArray[np.float64], slip_law: str) -> float:
+    """Default GMS attraction ``c`` (SI) when no Stribeck curve gives one: fast against the
+    smallest fitted break displacement, so the GMS behaves as the Maxwell-slip blocks fitted.
+    Derived from the record's motion, never from its sample period (a record decimated 4x must
+    give the same model)."""
+    relax = FAST_SLIP_FRACTION * float(np.min(fit.d))  # relaxation distance (m)
+    if slip_law == "displacement":
+        return 1.0 / relax  # rate c |v|: relaxes over 1/c of sliding
+    speed = np.abs(np.diff(x)) / np.diff(t)
+    top = float(np.percentile(speed, 99)) if speed.size else 0.0
+    top = top if top > 0 else float(np.ptp(x)) / max(float(t[-1] - t[0]), np.finfo(float).tiny)
+    # time law: rate c / s(v) with s ~ sum(w); at the top speed it relaxes over ``relax``
+    return float(fit.w.sum()) * top / relax
+
+
 def _make_gms(k: NDArray[np.float64], w: NDArray[np.float64], c: float, stribeck: Stribeck | None, sigma: float, slip_law: str) -> GMS:
     return GMS.from_break_forces(k, w, c, stribeck=stribeck, sigma=sigma, slip_law=slip_law, scale="sum")  # type: ignore[arg-type]
 
@@ -936,7 +957,9 @@ def fit_presliding(
         force.  Default: a constant level (Maxwell-slip blocks).
     c : float, optional
         GMS attraction parameter, in the data's units; default ``1 / vs`` of ``stribeck`` (the
-        paper's statement) or a fast ``sum(w) / dt``.
+        paper's statement) or, without ``stribeck``, fast: a slipping block relaxes within a tenth
+        of the smallest break displacement (at the record's top speed with the time law), so the
+        GMS acts as the fitted Maxwell-slip blocks whatever the sample rate.
     sigma : float
         Viscous coefficient of the GMS (data units).
     slip_law : {"time", "displacement"}
@@ -1016,7 +1039,7 @@ def fit_presliding(
     if force_bic:
         info["bic_force"] = {str(k): float(v) for k, v in force_bic.items()}
     if c_si is None:
-        c_si = 1.0 / st_si.vs if st_si is not None else float(vfit.w.sum()) / float(np.median(np.diff(t_si)))
+        c_si = 1.0 / st_si.vs if st_si is not None else _fast_slip(vfit, t_si, x_si, slip_law)
 
     if data is not None:
         cov_q, cov_rev, inflation, chi2_dof = _hysteresis_covariance(fit, mask, data.x, vc.resolution, data.sigma_reversal)
