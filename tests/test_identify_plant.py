@@ -175,3 +175,87 @@ def test_chi2_flags_data_from_a_plant_with_an_extra_resonance():
         res = fit_plant(estimate_frf(d["t"], d["input"], y), fmin=1.0, fmax=300.0)
     assert res.info["chi2_per_dof"] > 1e3  # not capped by a noise level taken from the misfit
     assert [x for x in res.diagnostics if x["code"] == "chi2"]
+
+
+def _multisine_record(plant: Plant, n: int, *, period: int = 512, dt: float = 1e-3, noise: float = 0.0, step: float = 0.0,
+                      steady: bool = False, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A periodic random-phase multisine (every harmonic of ``1 / (period dt)`` in 5-350 Hz)
+    driving ``plant``; output noise ``noise`` and quantization step ``step`` relative to its rms;
+    ``steady``: recorded from the periodic steady state on (two periods dropped)."""
+    rng = np.random.default_rng(seed)
+    f = np.fft.rfftfreq(period, dt)
+    lines = (f >= 5.0) & (f <= 350.0)
+    X = np.zeros(f.size, complex)
+    X[lines] = np.exp(2j * np.pi * rng.random(lines.sum()))
+    one = np.fft.irfft(X, period)
+    skip = 2 * period if steady else 0
+    u = np.tile(one / one.std(), (n + skip) // period + 1)[: n + skip]
+    y = plant.simulate(u, dt)[1][skip:]
+    u = u[skip:]
+    rms = np.std(y)
+    y = y + noise * rms * rng.standard_normal(n)
+    if step:
+        y = np.round(y / (step * rms)) * (step * rms)
+    return np.arange(n) * dt, u, y
+
+
+@pytest.mark.parametrize("delay, n, noise", [(0.0, 2**17, 1e-4), (2e-3, 2**16, 1e-5)])
+def test_periodic_multisine_delay_search_ends_at_half_the_line_spacing(delay, n, noise):
+    """A multisine repeating every 512 samples excites lines 1/0.512 s apart, 8-16 bins: delays a
+    whole period apart fit them alike.  The search ends at half the period (not at half the bins'
+    spacing, 4096 samples), so the delay is found, not one shifted by a period (0.512 s)."""
+    plant = Plant(a=3.0, b=770.0, c=0.0, delay=delay)
+    t, u, y = _multisine_record(plant, n, noise=noise)
+    res = fit_plant(estimate_frf(t, u, y))
+    assert abs(res.value("delay") - delay) < 1e-5
+    for k in ("a", "b"):
+        assert res.value(k) == pytest.approx(_truth(plant)[k], rel=1e-3)
+    assert not [x for x in res.diagnostics if x["code"] in ("chi2", "delay_ambiguous")]
+    assert res.info["excitation_period"] == pytest.approx(0.512)
+    assert res.info["delay_limit"] == pytest.approx(0.256)
+
+
+def test_delay_beyond_half_the_period_only_with_max_delay():
+    """A delay of 0.3 s, beyond half the 0.512 s period: not accepted by default (the fit is
+    flagged), found when max_delay widens the search, which then names the delays a whole period
+    apart as equally good (delay_ambiguous, FitWarning)."""
+    plant = Plant(a=3.0, b=770.0, c=0.0, delay=0.3)
+    t, u, y = _multisine_record(plant, 2**16, noise=1e-3, steady=True)
+    frf = estimate_frf(t, u, y)
+    with pytest.warns(FitWarning):
+        default = fit_plant(frf)
+    assert default.value("delay") <= 0.256 + 1e-9
+    assert [x for x in default.diagnostics if x["code"] == "chi2"]
+    with pytest.warns(FitWarning, match="fits about as well as"):
+        wide = fit_plant(frf, max_delay=1.2)
+    assert wide.value("delay") == pytest.approx(0.3, abs=1e-5)
+    assert wide.value("a") == pytest.approx(3.0, rel=1e-3)
+    (amb,) = [x for x in wide.diagnostics if x["code"] == "delay_ambiguous"]
+    assert amb["parameter"] == "delay" and "0.812" in amb["message"] and "1.324" in amb["message"] and "512 samples" in amb["message"]
+
+
+def test_quantized_output_of_a_periodic_excitation_is_no_chi2_misfit_but_a_wrong_model_is():
+    """An encoder step of 1e-3 of the output rms, little noise to dither it: with a periodic
+    excitation the quantization error repeats every period, is coherent with the reference and
+    not averaged away.  The bins' noise includes it (at most q^2/12 spread over the period's
+    harmonics, measured where no line is excited), so the right model's chi2/dof is ~1; a held
+    wrong delay and an unmodelled resonance are still flagged."""
+    plant = Plant(a=3.0, b=770.0, c=0.0, delay=3e-4)
+    t, u, y = _multisine_record(plant, 2**16, noise=1e-5, step=1e-3)
+    frf = estimate_frf(t, u, y)
+    right = fit_plant(frf)
+    assert 0.5 < right.info["chi2_per_dof"] < 1.5
+    assert not [x for x in right.diagnostics if x["code"] == "chi2"]
+    assert right.info["output_resolution"] == pytest.approx(1e-3 * np.std(plant.simulate(u, 1e-3)[1]), rel=0.01)
+    for k in ("a", "b", "delay"):
+        assert abs(right.value(k) - _truth(plant)[k]) < 5 * right.stderr(k)
+    with pytest.warns(FitWarning, match="chi2/dof"):
+        wrong = fit_plant(frf, fit_delay=False, delay=1.5e-3)
+    assert wrong.info["chi2_per_dof"] > 100.0
+    w0 = 2 * np.pi * 120.0
+    num, den, _ = signal.cont2discrete(([1.0, 2 * 0.1 * w0, w0**2], [1.0, 2 * 0.02 * w0, w0**2]), 1e-3, method="bilinear")
+    y_mode = signal.lfilter(np.ravel(num), den, plant.simulate(u, 1e-3)[1])
+    q = 1e-3 * np.std(y_mode)
+    with pytest.warns(FitWarning, match="chi2/dof"):
+        mode = fit_plant(estimate_frf(t, u, np.round(y_mode / q) * q))
+    assert mode.info["chi2_per_dof"] > 100.0

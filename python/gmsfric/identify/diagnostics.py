@@ -31,6 +31,7 @@ CODES = {
     "data": "few or rejected data (plateaus, bins, reversals)",
     "poor_fit": "the model explains little of the data (wrong signal, gain or unit?)",
     "units": "a scale implausible for a servo axis (sample rate, speed): a column in another unit than declared?",
+    "delay_ambiguous": "another delay fits about as well (a periodic excitation's lines cannot tell delays a whole period apart)",
 }
 
 

@@ -9,9 +9,11 @@ squares.  Each bin's complex error is divided by the standard deviation of the H
 ``|H| sqrt((1 - gamma^2) / (2 n_avg gamma^2))`` (Bendat & Piersol), so coherence weights the
 fit and the residuals are ~unit variance.  Start values need not be given: a linear
 (Levy) least-squares fit of ``H (s^2 + b s + c) = a exp(-s tau)`` is solved on a grid of delays,
-and the exact sampled model's linear fit for every whole number of delay samples the bin spacing
-can resolve; the best of each start the nonlinear fit.  The bins' noise always comes from the
-measurement (never from the fitted model's residual), so chi2 shows a misfit.
+and the exact sampled model's linear fit for every whole number of delay samples the spacing of
+the excited lines can resolve (a periodic multisine's lines, else the bins); the best of each
+start the nonlinear fit.  The bins' noise always comes from the measurement (never from the
+fitted model's residual), so chi2 shows a misfit; with a periodic excitation it includes the
+bias a quantized output's repeating quantization error leaves.
 """
 
 from __future__ import annotations
@@ -308,8 +310,11 @@ def fit_plant(
     min_coherence : float
         Bins below this coherence are left out.
     max_delay : float, optional
-        Upper end of the delay search (time unit); default what the phases of adjacent fitted
-        bins can tell apart, ``0.5 / min(diff(f))``.
+        Upper end of the delay search (time unit; the delay is bounded by 1.5 times it); default
+        what the phases of adjacent excited lines can tell apart, ``0.5 / spacing``: the spacing
+        of the fitted bins or, with a periodic excitation (a multisine repeating every ``P``
+        samples), of its excited harmonics, as delays a whole period apart fit its lines alike.
+        Another delay that fits about as well is reported (``delay_ambiguous``).
     fit_delay : bool
         Fit the delay (else hold it at ``delay``, time unit).
     force_gain : float, optional
@@ -334,6 +339,10 @@ def fit_plant(
     -------
     IdentificationResult
         ``model="plant"``, parameters ``a b c delay``; ``model_object`` a ``Plant`` in SI.
+        ``info`` includes ``excitation_period`` (time unit, ``None`` unless the reference
+        repeats), ``delay_limit`` and ``output_resolution`` (the output's quantization step,
+        ``None`` when it is not quantized): with a periodic excitation the repeating
+        quantization error is part of the bins' noise.
 
     Raises
     ------
@@ -355,11 +364,38 @@ def fit_plant(
         raise IdentificationError(f"only {f.size} frequency bins with coherence >= {min_coherence} in the band: need at least 8 (more excitation or a longer record)")
     sd = np.maximum(sd, 1e-12 * np.abs(H))
     T = sel.dt * kt if zoh else 0.0
-    q, r = _fit_plant_si(f, H, sd, T, fit_delay, float(delay) * kt, None if max_delay is None else float(max_delay) * kt, sel.dt * kt)
+    # a periodic excitation (multisine) carries information only at its lines: delays a whole
+    # period apart fit them alike, so the search ends at half the spacing of the excited lines
+    per = None if sel.record is None else _periodic_reference(sel.record.input if sel.record.excitation is None else sel.record.excitation)
+    line_spacing = period_si = None
+    f_d, H_d, sd_d = f, H, sd
+    if per is not None:
+        fk = per.excited / (per.period * sel.dt)
+        in_band = (fk >= sel.f[m].min() * (1 - 1e-9)) & (fk <= sel.f[m].max() * (1 + 1e-9))
+        k_band = per.excited[in_band]
+        line_spacing = float(np.min(np.diff(k_band)) if k_band.size > 1 else 1) / (per.period * sel.dt * kt)
+        period_si = per.period * sel.dt * kt
+        # Lines two bins apart or more: a bin next to a line holds that line's response (both
+        # spectra leak alike), not the response at the bin's frequency, so the direct fit takes
+        # one bin per line, at the line's frequency.
+        df = 1.0 / (sel.record.nperseg * sel.dt * kt)  # type: ignore[union-attr]
+        if line_spacing >= 2.0 * df:
+            near = np.clip(np.searchsorted(f, fk[in_band] / kt), 1, f.size - 1)
+            near = np.where(np.abs(f[near - 1] - fk[in_band] / kt) < np.abs(f[near] - fk[in_band] / kt), near - 1, near)
+            on = np.abs(f[near] - fk[in_band] / kt) <= 0.5 * df
+            near, on = np.unique(near[on], return_index=True)
+            if near.size >= 8:
+                f_d, H_d, sd_d = fk[in_band][on] / kt, H[near], sd[near]
+    q, r = _fit_plant_si(f_d, H_d, sd_d, T, fit_delay, float(delay) * kt, None if max_delay is None else float(max_delay) * kt, sel.dt * kt,
+                         line_spacing, period_si)
+    r.n_bins = f_d.size
+    resolution = None
+    r_direct = r
     if zoh and sel.record is not None:
         # the same fit against the model's FRF estimated exactly as the measured one (leakage)
         k_u = _units.factor(input_unit, "drive", name="input_unit")
-        q, r = _refine_matched(q, r, sel.record, sel.f[m], H, sd, kt, k_u, k_h * k_u, fit_delay, float(delay) * kt)
+        q, r = _refine_matched(q, r, sel.record, sel.f[m], H, sd, kt, k_u, k_h * k_u, fit_delay, float(delay) * kt, per, period_si)
+        resolution = getattr(r, "resolution", None)
     jac = r.jac if fit_delay else r.jac[:, :3]
     dof = max(2 * getattr(r, "n_bins", f.size) - (4 if fit_delay else 3), 1)
     chi2 = float(r.fun @ r.fun)
@@ -392,7 +428,27 @@ def fit_plant(
                     "delay": ": no delay found (or the band is too low to see it)"}[name]
             findings.add("at_bound", f"{name} is at its lower bound 0{what}", name)
     if fit_delay and upper_delay is not None:
-        check_bounds(findings, "delay", tau_si, None, float(upper_delay), what=" (the delay search's end: give --fmax or a longer band)")
+        end = (" (the delay search's end, half the period of the excitation's line spacing: delays a whole period apart fit its "
+               "lines alike; give max_delay to search further)" if line_spacing is not None and max_delay is None
+               else " (the delay search's end: give --fmax or a longer band)")
+        check_bounds(findings, "delay", tau_si, None, float(upper_delay), what=end)
+        # another delay that fits about as well (beyond the estimate's own uncertainty): the data
+        # cannot tell them apart, whichever the fit returned
+        tol = 4.0 * max(1.0, chi2 / dof)
+        alternatives = list(getattr(r, "alternatives", []))
+        if r is not r_direct:
+            # whole excitation periods apart, on the direct fit's lines: the matched fit's
+            # simulated start from rest would tell them apart, the steady-state data do not
+            base = r_direct.direct_chi2(q)
+            alternatives += [(float(x[3]), r_direct.direct_chi2(x) - base) for x in _period_shifts(q, period_si, float(upper_delay))]
+        near = sorted((t, d) for t, d in alternatives if abs(t - tau_si) > max(4.0 * se_si["delay"], sel.dt * kt) and d < tol)
+        if near:
+            why = (f": the excitation repeats every {per.period} samples, so delays a whole period apart fit its lines alike; give a "
+                   "max_delay below the period, or an excitation with a longer period" if per is not None else
+                   ": the data do not tell these delays apart (a longer record or a wider band may)")
+            others = ", ".join(f"{t / kt:.4g}" for t, _ in near)
+            findings.add("delay_ambiguous", f"delay = {values_si['delay'] / kt:.4g} {time_unit} fits about as well as {others} {time_unit} "
+                                            f"(chi2 within {max(abs(d) for _, d in near):.2g} of it){why}", "delay")
     # with the record, leakage can make the bins' noise an overestimate: only a large chi2 means something
     check_chi2(findings, chi2, dof, what=" of the FRF fit",
                low=None if matched else 0.5, rescaled=False)
@@ -404,7 +460,9 @@ def fit_plant(
     fac = {k: _units.factor(units[k], PLANT_QUANTITIES[k], name=f"units[{k!r}]") for k in PLANT_NAMES}
     params = {k: (values_si[k] / fac[k], se_si[k] / fac[k]) for k in PLANT_NAMES}
     info = {"zoh_dt": sel.dt if zoh else 0.0, "model": "sampled" if zoh else "continuous", "n_bins": int(f.size), "n_bins_weighted": int(getattr(r, "n_bins", f.size)),
-            "band": [float(sel.f[m].min()), float(sel.f[m].max())], "chi2_per_dof": chi2 / dof, "n_averages": frf.n_averages}
+            "band": [float(sel.f[m].min()), float(sel.f[m].max())], "chi2_per_dof": chi2 / dof, "n_averages": frf.n_averages,
+            "excitation_period": None if per is None else per.period * sel.dt, "delay_limit": None if upper_delay is None else float(upper_delay) / kt,
+            "output_resolution": resolution}
     info["force_gain"] = force_gain
     if force_gain is not None:
         units["force_gain"] = force_gain_unit
@@ -422,9 +480,15 @@ def fit_plant(
 
 
 def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64],
-                    kt: float, k_u: float, k_y: float, fit_delay: bool, delay: float) -> tuple[NDArray[np.float64], Any]:
+                    kt: float, k_u: float, k_y: float, fit_delay: bool, delay: float, per: _Periodic | None = None,
+                    period: float | None = None) -> tuple[NDArray[np.float64], Any]:
     """NLS of ``(log a, b, c, delay)`` where the model's response is the Welch estimate of the
-    sampled plant's simulated output for the recorded input (in SI), at the fitted bins."""
+    sampled plant's simulated output for the recorded input (in SI), at the fitted bins.
+
+    With a periodic excitation ``per`` and a quantized output, the bins' noise includes the bias
+    the repeating quantization error leaves (:func:`_periodic_error_sd`).  The result's
+    ``alternatives`` are ``(delay, chi2 - chi2_best)`` on this objective of the direct fit's other
+    optima and of the delay shifted by whole excitation periods (``period``, SI)."""
     u_si = record.input * k_u
     dt_si = record.dt * kt
     welch = _WelchRatio(record, u_si, f_data)
@@ -487,15 +551,57 @@ def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: ND
     # coherent with the reference, less the part window leakage alone leaves incoherent (the
     # noise-free model's output through the same segments; it cancels in this comparison).  The
     # model can only lower it, never below a floor, and never above the coherence bound.
-    y_fit = simulate_batch(plants([sol.x]), None, None, None, dt_si, feedforward=u_si, record=("position",), threads=1, progress=False).position
-    sd[:] = _matched_stderr(welch, record.output * k_y, y_fit[0], H_meas, open_loop=record.excitation is None)
-    # a bin the reference does not excite (between or beside a multisine's lines) holds a ratio of
-    # leakage residues that any small parameter error changes by far more than the noise: no data
+    q_step = _resolution(record.output)
+    floor = None if per is None or q_step is None else _periodic_error_sd(per, u_si, record.output * k_y, q_step * k_y, welch.bins, record.nperseg)
     S_rr = np.mean(np.abs(welch.R) ** 2, axis=0)
-    idle = S_rr < 1e-6 * np.median(S_rr)
-    if idle.sum() <= sd.size - 8:
-        sd[idle] = np.inf
+
+    def measured_noise(x: NDArray[np.float64]) -> None:
+        y_fit = simulate_batch(plants([x]), None, None, None, dt_si, feedforward=u_si, record=("position",), threads=1, progress=False).position
+        sd[:] = _matched_stderr(welch, record.output * k_y, y_fit[0], H_meas, open_loop=record.excitation is None)
+        if floor is not None:
+            sd[:] = np.hypot(sd, floor)
+        # a bin the reference does not excite (between or beside a multisine's lines) holds a ratio of
+        # leakage residues that any small parameter error changes by far more than the noise: no data
+        idle = S_rr < 1e-6 * np.median(S_rr)
+        if per is not None:
+            # with a periodic reference, a bin more than two bins from every excited line holds only
+            # the ratio of noise to leakage residue, whatever its reference power
+            lines = per.excited * (record.nperseg / per.period)
+            pos = np.clip(np.searchsorted(lines, welch.bins), 1, lines.size - 1) if lines.size > 1 else np.zeros(welch.bins.size, dtype=int)
+            gap = np.minimum(np.abs(welch.bins - lines[pos]), np.abs(welch.bins - lines[np.maximum(pos - 1, 0)]))
+            idle |= gap > 2.0
+        if idle.sum() <= sd.size - 8:
+            sd[idle] = np.inf
+
+    measured_noise(sol.x)
     sol = least_squares(resid, sol.x, jac=jac, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=20)
+    alternatives: list[tuple[float, float, NDArray[np.float64]]] = []
+    if fit_delay:
+        # the direct fit's other optima and the delay shifted by whole excitation periods, on this
+        # objective: one that fits better is taken (the direct fit cannot tell such delays apart,
+        # the simulated start transient here may), one about as good is reported
+        pool = [np.clip(np.asarray(x, dtype=float)[:n_q], lo, hi) for x in getattr(r0, "others", [])]
+        for attempt in range(3):
+            cands = [x for x in pool + _period_shifts(sol.x, period, float(hi[3])) if abs(x[3] - sol.x[3]) > dt_si]
+            alternatives = []
+            chi2_best = 2.0 * sol.cost
+            for x, h in zip(cands, model(cands) if cands else []):
+                d = float(np.sum(stack((h - H_meas) / sd) ** 2)) - chi2_best
+                if d < 100.0:  # judged once polished here
+                    rr = least_squares(resid, x, jac=jac, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=10)
+                    if 2.0 * rr.cost - chi2_best < d:
+                        x, d = rr.x, 2.0 * rr.cost - chi2_best
+                if abs(x[3] - sol.x[3]) > dt_si:
+                    alternatives.append((float(x[3]), d, x))
+            better = min(alternatives, key=lambda a: a[1], default=None)
+            if better is None or better[1] >= 0.0 or attempt == 2:
+                break
+            pool = [sol.x] + [a[2] for a in alternatives if a is not better]
+            # the bins' noise depends on the fitted model (leakage): measured again for this one
+            measured_noise(better[2])
+            sol = least_squares(resid, better[2], jac=jac, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=20)
+    sol.alternatives = [(t, d) for t, d, _ in alternatives]
+    sol.resolution = q_step
     q = np.concatenate([sol.x, q0[n_q:]])
     sol.bounds_hi = r0.bounds_hi
     sol.n_bins = int(np.sum(np.isfinite(sd)))
@@ -528,26 +634,157 @@ def _matched_stderr(welch: _WelchRatio, y: NDArray[np.float64], y_model: NDArray
     return np.maximum(sd, 1e-9 * np.abs(H))  # type: ignore[no-any-return]
 
 
+@dataclass(frozen=True)
+class _Periodic:
+    """A reference that repeats every ``period`` samples: the data then carry information only at
+    its harmonics ``k / (period dt)``, ``excited`` those with power; ``first`` and ``count`` the
+    whole periods averaged (the first skipped when there are enough: the start transient)."""
+
+    period: int
+    excited: NDArray[np.int_]
+    first: int
+    count: int
+
+    def coefficients(self, x: NDArray[np.float64]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+        """Fourier coefficients of the period-averaged ``x`` (harmonics ``0 .. period // 2``) and
+        the variance of each from the scatter between periods (the part that does not repeat)."""
+        seg = x[self.first:self.first + self.count * self.period].reshape(self.count, self.period)
+        C = np.fft.rfft(seg, axis=1) / self.period
+        c = C.mean(axis=0)
+        var = np.sum(np.abs(C - c) ** 2, axis=0) / (self.count * max(self.count - 1, 1))
+        return c, var  # type: ignore[return-value]
+
+
+def _periodic_reference(r: NDArray[np.float64], min_correlation: float = 0.95) -> _Periodic | None:
+    """The period of a reference that repeats every whole number of samples (a periodic
+    multisine), or ``None``: the first lag, after the autocorrelation fell below 0.5, where it
+    exceeds ``min_correlation``, and again at the next multiples (a narrow-band random signal
+    correlates at one lag but not at its multiples)."""
+    x = signal.detrend(np.asarray(r, dtype=float))
+    n = x.size
+    if n < 64 or not np.any(x):
+        return None
+    nfft = int(2 ** np.ceil(np.log2(2 * n)))
+    ac = np.fft.irfft(np.abs(np.fft.rfft(x, nfft)) ** 2, nfft)[: n // 2 + 1]
+    cs = np.concatenate(([0.0], np.cumsum(x * x)))
+    lags = np.arange(n // 2 + 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = ac / np.sqrt(cs[n - lags] * (cs[n] - cs[lags]))
+    rho = np.nan_to_num(rho)
+    dipped = np.flatnonzero(rho < 0.5)
+    if dipped.size == 0:
+        return None
+    above = np.flatnonzero((rho >= min_correlation) & (lags > dipped[0]))
+    if above.size == 0:
+        return None
+    run_end = above[0]
+    while run_end + 1 < rho.size and rho[run_end + 1] >= min_correlation:
+        run_end += 1
+    period = int(above[0] + np.argmax(rho[above[0]:run_end + 1]))
+    if any(rho[j * period] < min_correlation for j in range(2, 5) if j * period < rho.size):
+        return None
+    count = n // period
+    first = 1 if count >= 4 else 0
+    per = _Periodic(period, np.zeros(0, dtype=int), first * period, count - first)
+    c, var = per.coefficients(x)
+    power = np.abs(c) ** 2
+    power[0] = 0.0
+    # a harmonic carries excitation when it stands well above the scatter between periods
+    excited = np.flatnonzero(power > np.maximum(100.0 * np.median(var), 1e-8 * power.max()))
+    if excited.size == 0:
+        return None
+    return _Periodic(period, excited, per.first, per.count)
+
+
+def _resolution(y: NDArray[np.float64]) -> float | None:
+    """The step of a quantized record (an encoder count, an ADC step, a rounded column): the
+    smallest nonzero change of ``y`` when (nearly) every change is a whole multiple of it, else
+    ``None``."""
+    d = np.abs(np.diff(np.asarray(y, dtype=float)))
+    d = d[d > 0]
+    if d.size < 100:
+        return None
+    q0 = float(d.min())
+    j = np.rint(d / q0)
+    # within 1 % of a whole step (plus the rounding of the values' magnitude): a continuous record
+    # passes this for about 2 % of its changes
+    ok = np.abs(d / q0 - j) <= 0.01 + 1e-12 * float(np.max(np.abs(y))) / q0
+    if ok.mean() < 0.99:
+        return None
+    return float(np.sum(d[ok]) / np.sum(j[ok]))
+
+
+def _periodic_error_sd(per: _Periodic, u: NDArray[np.float64], y: NDArray[np.float64], q: float, bins: NDArray[np.int_],
+                       nperseg: int) -> NDArray[np.float64] | None:
+    """Standard deviation (real and imaginary part) of the bias a periodic output error leaves in
+    the Welch ratio at each bin: with a periodic excitation, quantizing the output with step
+    ``q`` gives an error that repeats every period, so it is coherent with the reference and
+    averaging segments does not reduce it (nor does the incoherent power show it).  Its level per
+    harmonic is measured where nothing is excited (the period-averaged output less the scatter
+    between periods; without 8 such harmonics, taken at the cap) and capped at what the quantization can give,
+    ``q^2 / 12`` spread evenly over the ``period`` harmonics (so a larger distortion stays a
+    misfit); at a bin, the harmonics near it are weighted by the Hann window's response."""
+    P = per.period
+    cu, _ = per.coefficients(u)
+    cy, var_y = per.coefficients(signal.detrend(y))
+    free = np.ones(cy.size, dtype=bool)
+    free[per.excited] = False
+    free[:3] = False  # the lowest harmonics hold what a linear detrend leaves of drift
+    # the error's spectrum need not be flat (nor is a trend that does not repeat absent from the
+    # period average): the mean over all unexcited harmonics, never above the cap, errs on the
+    # side of a larger noise
+    v = float(np.mean(np.abs(cy[free]) ** 2 - var_y[free])) if free.sum() >= 8 else np.inf
+    v = min(max(v, 0.0), q * q / (12.0 * P))
+    if v <= 0.0:
+        return None
+    # harmonics within 4 bins of each bin: offset nu = k nperseg / P - bin (in bins)
+    ratio = nperseg / P
+    k0 = np.floor((bins - 4.0) / ratio).astype(int)
+    kk = k0[:, None] + np.arange(int(np.ceil(8.0 / ratio)) + 2)[None, :]
+    inside = (kk >= 1) & (kk < cu.size)
+    nu = kk * ratio - bins[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.where(np.abs(np.abs(nu) - 1.0) < 1e-9, 0.5, np.sinc(nu) / (1.0 - nu * nu))
+    w2 = np.where(inside & (np.abs(nu) <= 4.0), w * w, 0.0)
+    den = np.sum(w2 * np.abs(cu[np.clip(kk, 0, cu.size - 1)]) ** 2, axis=1)
+    out = np.zeros(bins.size)
+    good = den > 0
+    out[good] = np.sqrt(v * np.sum(w2[good], axis=1) / (2.0 * den[good]))
+    return out
+
+
 def _fit_plant_si(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, fit_delay: bool, delay: float,
-                  max_delay: float | None, dt_data: float = 0.0) -> tuple[NDArray[np.float64], Any]:
+                  max_delay: float | None, dt_data: float = 0.0, line_spacing: float | None = None,
+                  period: float | None = None) -> tuple[NDArray[np.float64], Any]:
     """NLS of ``(log a, b, c, delay)`` on the SI FRF from the best starts of two searches.
 
     * Levy's continuous linear fit on a grid of delays over two periods of the highest bin (or
       ``max_delay``), as the paper would start it.
     * The exact sampled model's linear fit for every whole number of delay samples up to
-      ``max_delay`` or, without it, to what the phases of adjacent bins can tell apart
-      (``0.5 / min(diff(f))``): the cost has a local minimum every period of the highest bin, so
-      only a search over the whole plausible range finds the global one; a continuous fit cannot
-      serve there, as the sampled response departs from it near the Nyquist frequency.
+      ``max_delay`` or, without it, to what the phases of adjacent excited lines can tell apart,
+      ``0.5 / spacing`` (``line_spacing`` of a periodic excitation's lines, else that of the
+      bins): the cost has a local minimum every period of the highest bin, so only a search over
+      the whole plausible range finds the global one; a continuous fit cannot serve there, as
+      the sampled response departs from it near the Nyquist frequency.
+
+    Without ``max_delay`` the delay is bounded by that limit (beyond it, delays a whole number of
+    excitation periods apart fit the same lines equally well); with it, by ``1.5 max_delay``.
+    The result's ``alternatives`` lists ``(delay, chi2 - chi2_best)`` of the other optima found
+    and of the delay shifted by whole excitation ``period`` s within the bounds.
     """
     limit = 0.5 / float(np.min(np.diff(f))) if f.size > 1 else 2.0 / f.max()
-    span = min(2.0 / f.max(), limit) if max_delay is None else max_delay
-    upper = max(span, limit) if max_delay is None else max_delay
+    if line_spacing is not None and line_spacing > 0:
+        limit = min(limit, 0.5 / line_spacing)
+    if max_delay is None:
+        span, upper, bound = min(2.0 / f.max(), limit), limit, limit
+    else:
+        span = upper = max_delay
+        bound = 1.5 * max_delay
     dt_s = dt_data if dt_data > 0 else T
     extra: list[tuple[float, NDArray[np.float64]]] = []
     if fit_delay and dt_s > 0:
         extra = _sampled_starts(f, H, sd, T, dt_s, upper)
-    return _fit_plant_delay_span(f, H, sd, T, fit_delay, delay, span, extra, max(upper, span))
+    return _fit_plant_delay_span(f, H, sd, T, fit_delay, delay, span, extra, bound, period)
 
 
 def _sampled_starts(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, dt: float, max_delay: float,
@@ -653,7 +890,10 @@ def _continuous_from_sampled(f: NDArray[np.float64], H: NDArray[np.complex128], 
 
 def _fit_plant_delay_span(f: NDArray[np.float64], H: NDArray[np.complex128], sd: NDArray[np.float64], T: float, fit_delay: bool, delay: float,
                           max_delay: float, extra: list[tuple[float, NDArray[np.float64]]] | None = None,
-                          upper: float | None = None) -> tuple[NDArray[np.float64], Any]:
+                          bound: float | None = None, period: float | None = None) -> tuple[NDArray[np.float64], Any]:
+    """The NLS from the best Levy starts on a grid of delays in ``[0, max_delay]`` and from the
+    sampled search's starts ``extra``; the delay bounded by ``bound`` (default
+    ``1.5 max_delay``)."""
     wrel = np.abs(H) / sd  # 1 / relative standard deviation
     H_levy = H / zoh_factor(f, T)
 
@@ -683,8 +923,9 @@ def _fit_plant_delay_span(f: NDArray[np.float64], H: NDArray[np.complex128], sd:
     starts.sort(key=lambda s: s[0])
     extra = sorted(extra or [], key=lambda s: s[0])
     lo = np.array([-np.inf, 0.0, 0.0, 0.0])
-    hi = np.array([np.inf, np.inf, np.inf, max(1.5 * (max_delay if upper is None else upper), 1e-12)])
+    hi = np.array([np.inf, np.inf, np.inf, max(1.5 * max_delay if bound is None else bound, 1e-12)])
     best = None
+    runs = []
     # the best continuous starts and the best sampled ones (either kind can mislead the other's ranking)
     for j, (_, q0) in enumerate(starts[:3] + extra[:3]):
         q0 = np.clip(q0, lo, hi * (1 - 1e-9))
@@ -692,11 +933,33 @@ def _fit_plant_delay_span(f: NDArray[np.float64], H: NDArray[np.complex128], sd:
             q0[3] = 0.0
         # a sampled start near its optimum converges in tens of steps; one that crawls is not it
         r = least_squares(resid, q0, bounds=(lo, hi), x_scale="jac", method="trf", max_nfev=2000 if j < len(starts[:3]) else 300)
+        runs.append(r)
         if best is None or r.cost < best.cost:
             best = r
     assert best is not None
     best.bounds_hi = hi
+    best.others = [r.x for r in runs if r is not best]
+    best.direct_chi2 = lambda q: float(np.sum(resid(q) ** 2))
+    if fit_delay:
+        cands = best.others + _period_shifts(best.x, period, float(hi[3]))
+        best.alternatives = [(float(q[3]), float(np.sum(resid(q) ** 2)) - 2.0 * best.cost) for q in cands]
     return best.x, best
+
+
+def _period_shifts(q: NDArray[np.float64], period: float | None, bound: float, n_max: int = 4) -> list[NDArray[np.float64]]:
+    """``q`` with its delay shifted by whole excitation periods (the nearest ``n_max`` on each
+    side) within ``[0, bound]``: a periodic excitation's lines cannot tell these delays apart."""
+    if not period or period <= 0:
+        return []
+    out = []
+    for j in range(1, n_max + 1):
+        for sign in (-1, 1):
+            tau = q[3] + sign * j * period
+            if 0.0 <= tau <= bound:
+                qj = q.copy()
+                qj[3] = tau
+                out.append(qj)
+    return out
 
 
 def plant_to_control(result: IdentificationResult, pade_order: int | None = None) -> Any:
