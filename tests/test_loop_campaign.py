@@ -471,3 +471,25 @@ def test_a_slow_log_gets_a_filter_cut_off_chosen_on_its_estimation_rows():
     fast = AxisData(t, q, 2.0 * np.gradient(np.gradient(q, t), t) + 3.0 * np.sign(np.cos(2 * np.pi * 0.5 * t)), source="est")
     split = make_split(fast, None, LoopConfig(progress=False))
     assert split.preprocessing["cutoff_hz"] == 100.0 and split.preprocessing["chosen_by"].startswith("the recipe")
+
+
+def test_a_resonance_needs_only_a_consistent_gain_away_from_reversals(monkeypatch):
+    """A transmission resonance on a trapezoid run (the campaign's seed 53): it gains 60 % on the
+    held-out rows (t = 7.2), and on the rows clear of reversals and stops, where a trapezoid move
+    excites it only in the few accelerations away from a stop, at t = 2.7, p = 0.013.  That
+    confirms a whole-motion effect already found at the family-wise level; asking the rows clear
+    of reversals for the family-wise level again (and t >= 3) refuses the resonance."""
+    import dataclasses
+
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop import effects
+
+    runs = _campaign_runs(53, "single-140-compliance")
+    cfg = LoopConfig(progress=False, effects=("compliance",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == ["compliance"]
+    step = next(s for s in res.steps if s.accepted)
+    assert step.evidence["t_heldout"] >= cfg.t_threshold > step.evidence["t_heldout_away_from_reversals"] > 0
+    strict = dataclasses.replace(effects.CATALOGUE["compliance"], consistency_only=False)
+    monkeypatch.setitem(effects.CATALOGUE, "compliance", strict)
+    assert run_loop(*runs, cfg).effects == []

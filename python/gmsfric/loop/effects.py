@@ -182,6 +182,13 @@ class Effect:
         of a reversal (a Stribeck *dip*) must also gain on the rows clear of reversals and stops,
         at the nominal level ``alpha``: a consistency check of an effect already found on all
         rows, so not corrected for the family of tests.
+    consistency_only : bool
+        For a whole-motion effect: the rows clear of reversals and stops only have to agree with
+        the gain found on all rows, at the nominal level ``alpha`` (one-sided, no floor on t),
+        rather than confirm it at the family-wise level.  For a resonance: what excites it (a
+        change of acceleration) mostly sits next to the stops of the usual moves, so the rows
+        clear of them hold little of its gain, and a switch of friction, which gains only at
+        reversals, still fails there.
     null : callable, optional
         ``null(term) -> Term``: the part of the effect's term that is no evidence for the effect
         on its own.  The effect's tests (held-out, cross-validated, BIC; forward, in pairs and
@@ -200,6 +207,7 @@ class Effect:
     null: Callable[[Term], Term] | None = None
     clear_of_reversals: Callable[[dict[str, dict[str, float]]], bool] | None = None
     contested: Callable[[dict[str, dict[str, float]], Signals], bool] | None = None
+    consistency_only: bool = False
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
@@ -208,10 +216,11 @@ class Effect:
 
     def level_clear_of_reversals(self, model: LinearModel, level: float, alpha: float) -> float | None:
         """Level at which the fitted ``model``'s term must also gain on the held-out rows clear of
-        reversals and stops: the family-wise ``level`` for a whole-motion effect, the nominal
-        ``alpha`` for a fit :attr:`clear_of_reversals` flags, ``None`` (no such test) otherwise."""
+        reversals and stops: the family-wise ``level`` for a whole-motion effect (the nominal
+        ``alpha`` when :attr:`consistency_only`), the nominal ``alpha`` for a fit
+        :attr:`clear_of_reversals` flags, ``None`` (no such test) otherwise."""
         if self.whole_motion:
-            return level
+            return alpha if self.consistency_only else level
         if self.clear_of_reversals is not None and self.clear_of_reversals(model.params()):
             return alpha
         return None
@@ -646,7 +655,7 @@ CATALOGUE: dict[str, Effect] = {
                probe=lambda p, s: not HEATING_MIN_TAU_S <= p["heating_tau_s"]["value"] < s.duration, null=heating_trend),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
                refine=lambda s: [(1.0, resonance_limit(s)), (min(COMPLIANCE_PROBE_ZETAS), max(COMPLIANCE_PROBE_ZETAS))], whole_motion=True,
-               probe=lambda p, s: not COMPLIANCE_MIN_ZETA <= p["zeta"]["value"] <= COMPLIANCE_MAX_ZETA),
+               probe=lambda p, s: not COMPLIANCE_MIN_ZETA <= p["zeta"]["value"] <= COMPLIANCE_MAX_ZETA, consistency_only=True),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }

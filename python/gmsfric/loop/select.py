@@ -887,7 +887,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
         reasons.append("too few held-out rows clear of reversals and stops to confirm it")
     if h_far is not None and far_level is not None:
         ev["t_heldout_away_from_reversals"] = round(h_far.t, 2)
-        if h_far.p > far_level or (eff.whole_motion and h_far.t < cfg.t_threshold):
+        if h_far.p > far_level or (eff.whole_motion and not eff.consistency_only and h_far.t < cfg.t_threshold):
             reasons.append(f"not confirmed away from reversals (t = {h_far.t:.2f}, p = {h_far.p:.2g} > {far_level:.2g}): "
                            + ("it acts on the whole motion, and a gain only where the axis reverses or sticks is the switch of friction"
                               if eff.whole_motion else "a dip only where the axis reverses or sticks is the switch of friction seen through the filters"))
@@ -1023,7 +1023,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             far_level = eff.level_clear_of_reversals(both, level, cfg.alpha)
             if far_level is not None:
                 hf = heldout(split, reduced, both, st.chunk, far) if far.sum() >= 2 * st.chunk else None
-                ok = ok and hf is not None and hf.p <= far_level and (not eff.whole_motion or hf.t >= cfg.t_threshold)
+                ok = ok and hf is not None and hf.p <= far_level and (not eff.whole_motion or eff.consistency_only or hf.t >= cfg.t_threshold)
                 mg["t_heldout_away_from_reversals"] = round(hf.t, 2) if hf is not None else None
             marginals[eff.name] = mg
             if not ok:
