@@ -244,10 +244,29 @@ def estimate_frf(
     pre = Findings()
     check_saturation(pre, "the input", u)
     if excitation is None:
-        check_feedback(pre, u, y)
+        _check_feedback_open_loop(pre, u, y)
     checks: dict[str, Any] = {"closed_loop": excitation is not None, "findings": list(pre.items)}
     record = Record(u, y, None if excitation is None else ref, 1.0 / fs, nperseg, detrend)
     return FRF(f[m], H[m], np.clip(coh[m], 0.0, 1.0), n_avg, 1.0 / fs, 1.0 + 2.0 * float(np.sum(np.square(rho))), checks, record)
+
+
+def _check_feedback_open_loop(findings: Findings, u: NDArray[np.float64], y: NDArray[np.float64]) -> None:
+    """The feedback check of open-loop data.  A periodic input is tested on the parts of input
+    and output that do not repeat: the repeating part of the output is a deterministic response
+    that the check's short ARX model misses, and the future inputs, periodic, "explain" that
+    misfit on any open-loop record; feedback acts through the output's noise, which does not
+    repeat.  An input that repeats exactly cannot react to that noise at all."""
+    per = _periodic_reference(u)
+    if per is None or per.count < 2:
+        check_feedback(findings, u, y)
+        return
+    seg = slice(per.first, per.first + per.count * per.period)
+    uu = u[seg].reshape(per.count, per.period)
+    yy = y[seg].reshape(per.count, per.period)
+    u_np = (uu - uu.mean(axis=0)).ravel()
+    if not np.std(u_np) > 1e-9 * np.std(u[seg]):
+        return
+    check_feedback(findings, u_np, (yy - yy.mean(axis=0)).ravel())
 
 
 def zoh_factor(f: NDArray[np.float64], dt: float) -> NDArray[np.complex128]:
