@@ -33,6 +33,7 @@ from ..batch import simulate_batch
 from ..system import Plant
 from .diagnostics import Findings, check_bounds, check_chi2, check_feedback, check_saturation, check_stderr, emit
 from .results import IdentificationResult, covariance_from_jacobian, transform_covariance
+from .sampling import quantum
 
 PLANT_NAMES = ("a", "b", "c", "delay")
 COHERENCE_CAP = 0.9995
@@ -570,7 +571,7 @@ def _refine_matched(q0: NDArray[np.float64], r0: Any, record: Record, f_data: ND
     # coherent with the reference, less the part window leakage alone leaves incoherent (the
     # noise-free model's output through the same segments; it cancels in this comparison).  The
     # model can only lower it, never below a floor, and never above the coherence bound.
-    q_step = _resolution(record.output)
+    q_step = quantum(record.output) or None
     floor = None if per is None or q_step is None else _periodic_error_sd(per, u_si, record.output * k_y, q_step * k_y, welch.bins, record.nperseg)
     S_rr = np.mean(np.abs(welch.R) ** 2, axis=0)
 
@@ -713,24 +714,6 @@ def _periodic_reference(r: NDArray[np.float64], min_correlation: float = 0.95) -
     if excited.size == 0:
         return None
     return _Periodic(period, excited, per.first, per.count)
-
-
-def _resolution(y: NDArray[np.float64]) -> float | None:
-    """The step of a quantized record (an encoder count, an ADC step, a rounded column): the
-    smallest nonzero change of ``y`` when (nearly) every change is a whole multiple of it, else
-    ``None``."""
-    d = np.abs(np.diff(np.asarray(y, dtype=float)))
-    d = d[d > 0]
-    if d.size < 100:
-        return None
-    q0 = float(d.min())
-    j = np.rint(d / q0)
-    # within 1 % of a whole step (plus the rounding of the values' magnitude): a continuous record
-    # passes this for about 2 % of its changes
-    ok = np.abs(d / q0 - j) <= 0.01 + 1e-12 * float(np.max(np.abs(y))) / q0
-    if ok.mean() < 0.99:
-        return None
-    return float(np.sum(d[ok]) / np.sum(j[ok]))
 
 
 def _periodic_error_sd(per: _Periodic, u: NDArray[np.float64], y: NDArray[np.float64], q: float, bins: NDArray[np.int_],
