@@ -5,7 +5,7 @@ import pytest
 from scipy import signal
 
 from gmsfric import PID, Plant, presets
-from gmsfric.errors import FitWarning, IdentificationError
+from gmsfric.errors import FitWarning, IdentificationError, InvalidInputError
 from gmsfric.identify import VirtualRig, estimate_frf, fit_plant, plant_to_control, revise_plant
 
 TRUE_KEYS = ("a", "b", "c", "delay")
@@ -293,3 +293,16 @@ def test_open_loop_periodic_data_raise_no_feedback_finding_but_closed_loop_data_
     assert "closed_loop" not in [x.code for x in estimate_frf(t, u, y).checks["findings"]]
     t, u, y = _closed_loop_periodic(2**15)
     assert "closed_loop" in [x.code for x in estimate_frf(t, u, y).checks["findings"]]
+
+
+@pytest.mark.parametrize("max_delay, match", [(float("inf"), "max_delay"), (-1.0, "max_delay"), (float("nan"), "max_delay"),
+                                              (1e4, "beyond the longest delay the FRF's bins resolve")])
+def test_a_max_delay_that_cannot_be_searched_is_refused_naming_it(max_delay, match):
+    """An infinite or negative ``max_delay`` raised OverflowError or a bare ValueError from
+    ``range``; one far beyond what the bins' phases tell apart returned a delay of 0 (truth
+    0.3 ms) without a finding."""
+    plant = Plant(a=3.0, b=770.0, c=0.0, delay=3e-4)
+    t, u, y = _multisine_record(plant, 2**14, noise=1e-3)
+    frf = estimate_frf(t, u, y)
+    with pytest.raises(InvalidInputError, match=match):
+        fit_plant(frf, max_delay=max_delay)

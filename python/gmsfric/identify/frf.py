@@ -334,6 +334,7 @@ def fit_plant(
         what the phases of adjacent excited lines can tell apart, ``0.5 / spacing``: the spacing
         of the fitted bins or, with a periodic excitation (a multisine repeating every ``P``
         samples), of its excited harmonics, as delays a whole period apart fit its lines alike.
+        Refused beyond ``0.5 / spacing`` of the FRF's bins, where no search can tell delays apart.
         Another delay that fits about as well is reported (``delay_ambiguous``).
     fit_delay : bool
         Fit the delay (else hold it at ``delay``, time unit).
@@ -368,12 +369,17 @@ def fit_plant(
     ------
     UnitError
         A unit unknown or not of its quantity (before any work).
+    InvalidInputError
+        ``force_gain`` or ``max_delay`` not positive and finite, or ``max_delay`` beyond what
+        the bins resolve.
     IdentificationError
         Fewer than 8 usable bins in the band.
     """
     units, force_gain_unit = plant_units(time_unit, input_unit, output_unit, force_gain_unit)
     if force_gain is not None:
         force_gain = positive("force_gain", force_gain)
+    if max_delay is not None:
+        max_delay = positive("max_delay", max_delay)
     kt = _units.factor(time_unit, "time", name="time_unit")
     k_h = _units.factor(output_unit, "position", name="output_unit") / _units.factor(input_unit, "drive", name="input_unit")
     sel = frf.select(fmin, fmax)
@@ -382,6 +388,12 @@ def fit_plant(
     f, H, sd = sel.f[m] / kt, sel.H[m] * k_h, sel.stderr[m] * k_h
     if f.size < 8:
         raise IdentificationError(f"only {f.size} frequency bins with coherence >= {min_coherence} in the band: need at least 8 (more excitation or a longer record)")
+    resolvable = 0.5 / float(np.min(np.diff(sel.f)))
+    if max_delay is not None and max_delay > resolvable:
+        # beyond it the phases of adjacent bins no longer tell delays apart: the search would
+        # pick one of several equally good delays
+        raise InvalidInputError(f"`max_delay` = {max_delay:g} {time_unit} is beyond the longest delay the FRF's bins resolve, "
+                                f"{resolvable:g} {time_unit} (half the inverse of their spacing); a longer segment (nperseg) resolves longer delays")
     sd = np.maximum(sd, 1e-12 * np.abs(H))
     T = sel.dt * kt if zoh else 0.0
     # a periodic excitation (multisine) carries information only at its lines: delays a whole
