@@ -149,6 +149,7 @@ def _registry() -> dict[str, Any]:
         "identify.fit_static_map": lambda *a, **k: identify.fit_static_map(*a, progress=False, **k),
         "identify.build_virgin_curve": identify.build_virgin_curve,
         "identify.fit_presliding": lambda *a, **k: identify.fit_presliding(*a, progress=False, **k),
+        "identify.fit_plant": lambda t, u, y, **k: identify.fit_plant(identify.estimate_frf(t, u, y), **k),
         "loop.AxisData": loop.AxisData,
         "method": method,
         # The harness's own detectors are tested with these.
@@ -810,9 +811,12 @@ def _strategies() -> dict[str, Any]:
         t = t if not chance(draw, prof.hostile) else draw(array(n, record, prof))
         x = wave if not chance(draw, prof.hostile) else draw(array(n, record, prof))
         f = np.cos(np.linspace(0.0, 12.0, n)) if not chance(draw, prof.hostile) else draw(array(n, record, prof))
-        kind = draw(st.sampled_from(["frf", "static_map", "virgin", "presliding", "axis_data"]))
+        kind = draw(st.sampled_from(["frf", "plant", "static_map", "virgin", "presliding", "axis_data"]))
         if kind == "frf":
             return call("identify.estimate_frf", t, f, x)
+        if kind == "plant":
+            return call("identify.fit_plant", t, f, x, max_delay=draw(param(Num(st.just(0.01), real.wide), prof)),
+                        fmax=draw(param(Num(st.just(100.0), real.wide), prof)))
         if kind == "static_map":
             return call("identify.fit_static_map", x, f)
         if kind == "virgin":
