@@ -6,12 +6,11 @@ from __future__ import annotations
 import argparse
 from typing import Any, Sequence
 
-import numpy as np
-
 from .. import presets
 from .._validate import allocation
 from ..cli import Run, declare_files, finite_float, log, non_negative_float, positive_float
 from ..errors import DataError
+from ..identify.diagnostics import fraction_at_limit
 from ..model_io import load_model
 from ..models import GMS, MaxwellSlip, StaticFriction, axis_name
 from ..system import Plant
@@ -192,7 +191,7 @@ def saturation(study: GlitchStudy, drive_limit: float) -> dict[str, Any]:
     at_limit = {}
     for name, r in runs.items():
         if r.command is not None and r.command.size:
-            at_limit[name] = float(np.mean(np.abs(r.command) >= drive_limit * (1.0 - 1e-9)))
+            at_limit[name] = fraction_at_limit(r.command, -drive_limit, drive_limit)
     worst = max(at_limit, key=at_limit.__getitem__) if at_limit else None
     return {"drive_limit": drive_limit, "fraction_at_limit": at_limit, "max_fraction": at_limit[worst] if worst else 0.0, "worst_run": worst}
 

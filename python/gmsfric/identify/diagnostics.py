@@ -162,6 +162,22 @@ def check_saturation(findings: Findings, name: str, values: NDArray[np.float64],
                                        "(saturated drive or sensor): the linear estimate is biased there", name)
 
 
+def fraction_at_limit(u: NDArray[np.float64], lo: float = -np.inf, hi: float = np.inf) -> float:
+    """Share of the samples of a drive command ``u`` at one of its finite limits ``lo``, ``hi``
+    (a saturated drive; 0 without a finite limit or samples)."""
+    u = np.asarray(u, dtype=float)
+    finite = [limit for limit in (lo, hi) if np.isfinite(limit)]
+    if u.size == 0 or not finite:
+        return 0.0
+    tol = 1e-9 * max(max(abs(limit) for limit in finite), 1.0)
+    at = np.zeros(u.size, dtype=bool)
+    if np.isfinite(lo):
+        at |= u <= lo + tol
+    if np.isfinite(hi):
+        at |= u >= hi - tol
+    return float(at.mean())
+
+
 def feedback_strength(u: NDArray[np.float64], y: NDArray[np.float64], *, na: int = 4, nb: int = 10, nf: int = 5,
                       max_samples: int = 40000) -> tuple[float, float]:
     """How much the present and future input explain of the output beyond an ARX model on the
@@ -210,4 +226,4 @@ def check_feedback(findings: Findings, u: NDArray[np.float64], y: NDArray[np.flo
 
 
 __all__ = ["Diagnostic", "Findings", "CODES", "emit", "format_block", "check_bounds", "check_stderr", "check_chi2", "check_saturation",
-           "check_feedback", "feedback_strength"]
+           "fraction_at_limit", "check_feedback", "feedback_strength"]

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..identify.diagnostics import Findings, check_saturation
+from ..identify.diagnostics import Findings, check_saturation, fraction_at_limit
 
 if TYPE_CHECKING:
     from ..system import PID, Cascade
@@ -166,14 +166,9 @@ def check_closed_loop(result: "LoopResult", controller: "PID | Cascade | None" =
         lo, hi = float(getattr(controller, "u_min", -np.inf)), float(getattr(controller, "u_max", np.inf))
         for (mname, rname), res in result.closed_loop_runs.items():
             u = getattr(res, "command", None)
-            if u is None or u.size == 0:
+            if u is None:
                 continue
-            span = max(abs(lo) if np.isfinite(lo) else 0.0, abs(hi) if np.isfinite(hi) else 0.0)
-            at = np.zeros(u.size, dtype=bool)
-            for limit in (lo, hi):
-                if np.isfinite(limit):
-                    at |= np.abs(u - limit) <= 1e-9 * max(span, 1.0)
-            share = float(at.mean())
+            share = fraction_at_limit(u, lo, hi)
             if share > CLOSED_LOOP_SATURATED:
                 found.add("saturation", f"the closed-loop replay of the {mname} model on the {rname} run holds the drive at its limit "
                                         f"on {share:.1%} of the samples: the replay is then the limit's, not the model's "
