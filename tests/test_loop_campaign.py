@@ -272,8 +272,12 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     blur; seed 29 `single-003` (stiff P-PI cascade, 2 kHz) fitted 5 samples with t 4.4 even on rows
     the velocity filter had settled on, because the decimation filter rings for about 7 rows on
     either side.  On held-out rows clear of both the shift gains too little to pass the level a
-    first-round test has with the whole catalogue, so no input delay is named; without the margin
-    that settles the case (every row, or the velocity filter's margin alone), it is."""
+    first-round test has with the whole catalogue, so no input delay is named.  Without the margin
+    that settles the case (every row, or the velocity filter's margin alone) the test still holds
+    because both models are fitted again on the rows it keeps; without that refit too, the delay
+    is named."""
+    import dataclasses
+
     from gmsfric.loop import CATALOGUE, LoopConfig, run_loop
     from gmsfric.loop import effects, select
 
@@ -288,6 +292,10 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
         monkeypatch.setattr(select, "settled_rows", lambda s: np.ones(s.n_rows, bool))
     else:
         monkeypatch.setattr(effects, "decimation_settling_rows", lambda dec: 0)
+    # each guard holds alone: fitted again on rows clear of the (narrower) margins, the
+    # baseline needs no shift either
+    assert run_loop(*runs, cfg).effects == []
+    monkeypatch.setitem(CATALOGUE, "input_delay", dataclasses.replace(CATALOGUE["input_delay"], refit_clear_of_reversals=False))
     assert run_loop(*runs, cfg).effects == ["input_delay"]
 
 
@@ -493,3 +501,25 @@ def test_a_resonance_needs_only_a_consistent_gain_away_from_reversals(monkeypatc
     strict = dataclasses.replace(effects.CATALOGUE["compliance"], consistency_only=False)
     monkeypatch.setitem(effects.CATALOGUE, "compliance", strict)
     assert run_loop(*runs, cfg).effects == []
+
+
+def test_a_delay_must_gain_clear_of_stops_when_both_models_are_fitted_there(monkeypatch):
+    """A clean rotary rig whose friction is 2.6 times its largest inertial force (the campaign's
+    seed 57): fitted on all moving rows, the baseline's inertia comes out 22 % high from what the
+    filters make of the stops, and a 1.8 ms "delay" fitted with it gains on the held-out rows
+    clear of the stops (t = 6.7) by undoing that bias.  Fitted where the filters have settled,
+    the baseline needs no delay, and none is named; without that refit the false delay enters."""
+    import dataclasses
+
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop import effects
+
+    runs = _campaign_runs(57, "clean-244-clean")
+    cfg = LoopConfig(progress=False, effects=("input_delay",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == []
+    step = next(s for s in res.steps if s.effect == "input_delay")
+    assert "not confirmed away from reversals" in step.reason and step.evidence["t_heldout"] >= cfg.t_threshold
+    fitted_on_all = dataclasses.replace(effects.CATALOGUE["input_delay"], refit_clear_of_reversals=False)
+    monkeypatch.setitem(effects.CATALOGUE, "input_delay", fitted_on_all)
+    assert run_loop(*runs, cfg).effects == ["input_delay"]

@@ -74,6 +74,7 @@ def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
     clean_nothing = [r for r in clean_ok if not false_effects(r)]
     pairs = [r for r in results if len(r["planted"]) == 2]
     pairs_det = [r for r in pairs if all(t["detectable"] for t in r["truth"]["effects"].values())]
+    pairs_null = [r for r in pairs if all(t.get("detectable_beyond_null") for t in r["truth"]["effects"].values())]
     both = lambda rs: [r for r in rs if r["status"] == "ok" and all(e in r["accepted"] for e in r["planted"])]  # noqa: E731
     by_group: dict[str, list[int]] = {}
     for r in done:
@@ -93,6 +94,7 @@ def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
         "clean": [len(clean_nothing), len(clean_ok), len(clean) - len(clean_ok)],
         "pairs_both_detectable": [len(both(pairs_det)), sum(r["status"] == "ok" for r in pairs_det), len(pairs_det)],
         "pairs_all": [len(both(pairs)), sum(r["status"] == "ok" for r in pairs), len(pairs)],
+        "pairs_both_detectable_beyond_null": [len(both(pairs_null)), sum(r["status"] == "ok" for r in pairs_null), len(pairs_null)],
         "min_recall_detectable": min_recall,
         "min_recall_detectable_moving": min_recall_moving,
         "min_recall_detectable_beyond_null": min_recall_null,
@@ -183,6 +185,9 @@ def format_report(results: list[dict[str, Any]], summary: dict[str, Any], wall_s
     c, pd, pa = s["clean"], s["pairs_both_detectable"], s["pairs_all"]
     out.append(f"Clean runs ending with nothing added: {_pct(c[0], c[1])} of completed ({c[2]} failed)")
     out.append(f"Two-effect cases finding both: {_pct(pd[0], pd[1])} with both detectable ({pd[2] - pd[1]} failed); all pairs {_pct(pa[0], pa[1])}")
+    pn = s.get("pairs_both_detectable_beyond_null")
+    if pn:
+        out.append(f"  with both detectable beyond the loop's nulls: {_pct(pn[0], pn[1])}")
     out.append(f"Half-sample alignment applied (not counted as an effect): {100 * s['alignment_rate']:.0f} % of completed runs")
     out.append("")
     fails = [r for r in sorted(results, key=lambda r: r["id"]) if r["status"] != "ok"]
@@ -207,4 +212,6 @@ def format_report(results: list[dict[str, Any]], summary: dict[str, Any], wall_s
     out.append(f"  clean runs nothing added >= 98 %: {verdict(cr, cr >= TARGETS['clean'])}")
     pr = pd[0] / pd[1] if pd[1] else float("nan")
     out.append(f"  two-effect cases both found >= 80 %: {verdict(pr, pr >= TARGETS['pairs'])}")
+    if pn and pn[1]:
+        out.append(f"    (both detectable beyond the loop's nulls: {verdict(pn[0] / pn[1], pn[0] / pn[1] >= TARGETS['pairs'])})")
     return "\n".join(out)

@@ -189,6 +189,13 @@ class Effect:
         change of acceleration) mostly sits next to the stops of the usual moves, so the rows
         clear of them hold little of its gain, and a switch of friction, which gains only at
         reversals, still fails there.
+    refit_clear_of_reversals : bool
+        For a whole-motion effect: the test on the rows clear of reversals and stops fits both
+        models again on the estimation rows clear of them.  Fitted on all moving rows, the
+        baseline's mass and friction absorb what the filters make of the stops; a delay fitted
+        with them gains on the rows clear of stops by undoing that bias (a clean rig with strong
+        friction took a 1.8 ms "delay" that way), and gains nothing once both models are fitted
+        where the filters have settled.
     null : callable, optional
         ``null(term) -> Term``: the part of the effect's term that is no evidence for the effect
         on its own.  The effect's tests (held-out, cross-validated, BIC; forward, in pairs and
@@ -208,6 +215,7 @@ class Effect:
     clear_of_reversals: Callable[[dict[str, dict[str, float]]], bool] | None = None
     contested: Callable[[dict[str, dict[str, float]], Signals], bool] | None = None
     consistency_only: bool = False
+    refit_clear_of_reversals: bool = False
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
@@ -649,7 +657,7 @@ CATALOGUE: dict[str, Effect] = {
                null=reversal_switch),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
-        Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True),
+        Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True, refit_clear_of_reversals=True),
         Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok,
                probe=lambda p, s: not HEATING_MIN_TAU_S <= p["heating_tau_s"]["value"] < s.duration, null=heating_trend),

@@ -409,6 +409,38 @@ def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, r
     return HeldOut(t, p, 1.0 - e1 / e0 if e0 > 0 else 0.0, m, e0, e1)
 
 
+@dataclass(frozen=True)
+class ClearRows:
+    """Moving rows clear of reversals and stops (faster than the blur of the filter, and settled
+    after it in time): ``est`` of the estimation run (fits), ``val`` of the held-out run (tests)."""
+
+    est: Array
+    val: Array
+
+
+def clear_rows(split: Split) -> ClearRows:
+    def clear(sig: Signals, moving: Array) -> Array:
+        return settled_rows(sig) & (np.abs(sig.rows["qd"]) >= dip_resolution(split.est)) & moving.astype(bool)
+    return ClearRows(clear(split.est, split.est_fit), clear(split.val, split.val_test))
+
+
+def heldout_clear(split: Split, before: LinearModel, after: LinearModel, chunk: int, clear: ClearRows, refit: bool) -> HeldOut | None:
+    """Compare two fitted models on the held-out rows clear of reversals and stops (``None`` when
+    too few).  With ``refit`` both are first fitted again on the estimation rows clear of them
+    (their nonlinear parameters kept): what an effect gains there must not be the baseline
+    parameters it frees from what the rows near reversals and stops pulled them to."""
+    if clear.val.sum() < 2 * chunk:
+        return None
+    if refit:
+        if clear.est.sum() < max(2 * chunk, 4 * after.n_params):
+            return None
+        try:
+            before, after = before.copy().fit(split.est, clear.est), after.copy().fit(split.est, clear.est)
+        except (IdentificationError, np.linalg.LinAlgError):
+            return None
+    return heldout(split, before, after, chunk, clear.val)
+
+
 # ------------------------------------------------------------------------------------------
 # Models
 
@@ -795,9 +827,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
                     st.steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
             level = cfg.level(rnd, len(applicable))
-            # held-out rows clear of reversals and stops (faster than the blur of the filter, and
-            # settled after it in time)
-            far = settled_rows(split.val) & (np.abs(split.val.rows["qd"]) >= dip_resolution(split.est)) & split.val_test.astype(bool)
+            far = clear_rows(split)
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
                 step, h, _ = _test_candidate(st, cfg, rnd, eff, m, nulls[eff.name], gain_cv, level, far, fnd)
@@ -844,7 +874,7 @@ def _candidate(m: LinearModel, effect: str, others: list[str], cv: float, st: _S
 
 
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
-                    level: float, far: Array, fnd: dict[str, Finding]) -> tuple[Step, HeldOut, HeldOut]:
+                    level: float, far: ClearRows, fnd: dict[str, Finding]) -> tuple[Step, HeldOut, HeldOut]:
     """The tests of a candidate model ``m`` whose effect ``eff`` is tested against ``null``
     (fitted): its step (rejected; ``reason`` empty when every test passes), the held-out test
     against the null and the one against the current model."""
@@ -857,7 +887,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     # the effect, or its null part, may predict the held-out run worse than it)
     h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects or eff.null is not None else h
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
-    h_far = heldout(split, null, m, st.chunk, far) if far_level is not None and far.sum() >= 2 * st.chunk else None
+    h_far = heldout_clear(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
     dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
     change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
     ev: dict[str, Any] = {}
@@ -884,7 +914,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
             reasons.append(f"the model with it is no better than the current model on held-out data (gain "
                            f"{100 * h_cur.gain:.2f} %, t = {h_cur.t:.2f}, p = {h_cur.p:.2g})")
     if far_level is not None and h_far is None:
-        reasons.append("too few held-out rows clear of reversals and stops to confirm it")
+        reasons.append("too few rows clear of reversals and stops to confirm it")
     if h_far is not None and far_level is not None:
         ev["t_heldout_away_from_reversals"] = round(h_far.t, 2)
         if h_far.p > far_level or (eff.whole_motion and not eff.consistency_only and h_far.t < cfg.t_threshold):
@@ -898,7 +928,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     return Step(rnd, eff.name, False, "; ".join(reasons), ev, e_est, e_val, m.params(), m), h, h_cur
 
 
-def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], far: Array, fnd: dict[str, Finding],
+def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], far: ClearRows, fnd: dict[str, Finding],
                    prog: Progress) -> bool:
     """When nothing more enters, every accepted effect is tried replaced by every catalogue effect
     not in the model.  An effect can enter first as the nearest stand-in for another that the run
@@ -977,7 +1007,7 @@ def _combine(a: LinearModel, b: LinearModel, b_name: str, dt: float) -> LinearMo
     return out
 
 
-def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, Effect, LinearModel]], far: Array,
+def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, Effect, LinearModel]], far: ClearRows,
                fnd: dict[str, Finding], prog: Progress) -> bool:
     """When no single effect passes, two may enter together: effects that are confounded (a
     position-dependent friction and force, a drift and a Stribeck curve) can each fail alone, the
@@ -1022,7 +1052,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
             far_level = eff.level_clear_of_reversals(both, level, cfg.alpha)
             if far_level is not None:
-                hf = heldout(split, reduced, both, st.chunk, far) if far.sum() >= 2 * st.chunk else None
+                hf = heldout_clear(split, reduced, both, st.chunk, far, eff.refit_clear_of_reversals)
                 ok = ok and hf is not None and hf.p <= far_level and (not eff.whole_motion or eff.consistency_only or hf.t >= cfg.t_threshold)
                 mg["t_heldout_away_from_reversals"] = round(hf.t, 2) if hf is not None else None
             marginals[eff.name] = mg
