@@ -419,6 +419,7 @@ class ClearRows:
 
 
 def clear_rows(split: Split) -> ClearRows:
+    """The moving rows of both runs clear of reversals and stops (speed from the estimation run)."""
     def clear(sig: Signals, moving: Array) -> Array:
         return settled_rows(sig) & (np.abs(sig.rows["qd"]) >= dip_resolution(split.est)) & moving.astype(bool)
     return ClearRows(clear(split.est, split.est_fit), clear(split.val, split.val_test))
