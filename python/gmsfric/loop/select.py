@@ -807,6 +807,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
     """Stage 3: rounds of forward selection (corrected held-out test, competition on the same
     held-out rows), joint refit and backward elimination."""
     split = st.split
+    far = clear_rows(split)  # the rows do not change from round to round
     rnd = 0
     with Progress("gmsfric loop", enabled=cfg.progress) as prog:
         while len(st.model.effects) < cfg.max_effects:
@@ -828,7 +829,6 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
                     st.steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
             level = cfg.level(rnd, len(applicable))
-            far = clear_rows(split)
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
                 step, h, _ = _test_candidate(st, cfg, rnd, eff, m, nulls[eff.name], gain_cv, level, far, fnd)
