@@ -196,6 +196,14 @@ class Effect:
         with them gains on the rows clear of stops by undoing that bias (a clean rig with strong
         friction took a 1.8 ms "delay" that way), and gains nothing once both models are fitted
         where the filters have settled.
+    creeping : bool
+        The effect's evidence lies where the axis creeps: its variants are chosen, fitted and
+        tested (cross-validated, held-out, BIC; forward, in pairs, in exchanges and backward) on
+        the moving and creeping rows, the current model fitted there too.  Pre-sliding: an axis
+        that crosses its contact's elastic range after a reversal does so slower than the
+        standstill speed on many axes (an outside audit's rig: held-out t = 1.5 on the moving rows,
+        146 with the creeping rows).  Terms that need the sign of the filtered velocity are not
+        judged there: at such speeds it is noise.
     null : callable, optional
         ``null(term) -> Term``: the part of the effect's term that is no evidence for the effect
         on its own.  The effect's tests (held-out, cross-validated, BIC; forward, in pairs and
@@ -216,6 +224,7 @@ class Effect:
     contested: Callable[[dict[str, dict[str, float]], Signals], bool] | None = None
     consistency_only: bool = False
     refit_clear_of_reversals: bool = False
+    creeping: bool = False
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
@@ -654,7 +663,7 @@ CATALOGUE: dict[str, Effect] = {
         Effect("stribeck", "friction changes from its level at rest to its sliding level at low speed (Stribeck curve)", "velocity", _stribeck, _stribeck_ok,
                probe=lambda p, s: p["vs"]["value"] > s.v_scale, clear_of_reversals=_stribeck_dip, contested=_contested_hump),
         Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok,
-               null=reversal_switch),
+               null=reversal_switch, creeping=True),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True, refit_clear_of_reversals=True),

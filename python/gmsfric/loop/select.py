@@ -140,6 +140,11 @@ class LoopConfig:
     rest_fraction : float
         Rows slower than this fraction of the run's speed scale (99th percentile of ``|qd|``) are
         standstill, left out of fits and tests (in [0, 0.5)).
+    creep_fraction : float
+        Rows slower than ``rest_fraction`` but at least this fraction of the speed scale, where the
+        measured position moves (not stuck), are creeping: left out like standstill, except by the
+        effects whose evidence lies there (pre-sliding, :attr:`Effect.creeping`), which are chosen,
+        fitted and tested on the moving and creeping rows (in [0, ``rest_fraction``]).
     max_effects : int
         Upper bound on the number of added effects (>= 0).
     sampling_hold : bool
@@ -162,6 +167,7 @@ class LoopConfig:
     min_gain: float = 0.05
     max_parameter_ratio: float = 2.0
     rest_fraction: float = 0.01
+    creep_fraction: float = 0.002
     max_effects: int = 6
     sampling_hold: bool = True
     seed: int = 0
@@ -188,6 +194,9 @@ class LoopConfig:
         rf = finite("rest_fraction", self.rest_fraction)
         if not 0.0 <= rf < 0.5:
             raise InvalidInputError(f"`rest_fraction` must be in [0, 0.5), got {rf}")
+        cf = finite("creep_fraction", self.creep_fraction)
+        if not 0.0 <= cf <= rf:
+            raise InvalidInputError(f"`creep_fraction` must be in [0, rest_fraction = {rf}], got {cf}")
         if isinstance(self.baseline, str) or not all(isinstance(b, str) for b in self.baseline):
             raise InvalidInputError(f"`baseline` must be a sequence of term names, got {self.baseline!r}")
         unknown = [b for b in self.baseline if b not in BASE_TERMS]
@@ -207,8 +216,10 @@ class LoopConfig:
 
 @dataclass
 class Split:
-    """Estimation and held-out rows: ``(signals, row mask)`` each, and the moving rows of both
-    that fits (``est_fit``) and tests (``val_test``) use."""
+    """Estimation and held-out rows: ``(signals, row mask)`` each, the moving rows of both that
+    fits (``est_fit``) and tests (``val_test``) use, and the moving and creeping rows of both
+    (``est_creep``, ``val_creep``: not stuck, faster than the creep speed) that the tests of a
+    creeping effect use (:meth:`creeping`)."""
 
     est: Signals
     est_rows: Array
@@ -217,6 +228,8 @@ class Split:
     holdout: str
     est_fit: Array = field(default=None)  # type: ignore[assignment]
     val_test: Array = field(default=None)  # type: ignore[assignment]
+    est_creep: Array = field(default=None)  # type: ignore[assignment]
+    val_creep: Array = field(default=None)  # type: ignore[assignment]
     #: How the position filter's cut-off was chosen (the JSON's ``preprocessing``).
     preprocessing: dict[str, Any] = field(default_factory=dict)
 
@@ -225,6 +238,18 @@ class Split:
             self.est_fit = self.est_rows & self.est.moving
         if self.val_test is None:
             self.val_test = self.val_rows & self.val.moving
+        if self.est_creep is None:
+            self.est_creep = self.est_fit
+        if self.val_creep is None:
+            self.val_creep = self.val_test
+
+    def creeping(self) -> "Split":
+        """The same runs with the moving and creeping rows as the rows fits and tests use."""
+        return replace(self, est_fit=self.est_creep, val_test=self.val_creep)
+
+    def creep_rows(self) -> "TestRows":
+        """The moving and creeping rows of both runs."""
+        return TestRows(self.est_creep, self.val_creep)
 
     def errors(self, m: LinearModel) -> tuple[float, float]:
         """Estimation and held-out errors (%) on all rows (standstill included)."""
@@ -291,13 +316,21 @@ def _estimation_signals(est: AxisData, cfg: LoopConfig, held_out: bool) -> tuple
 
 def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
     """Preprocess the runs, choose the held-out rows (a validation run, or interleaved blocks of
-    the estimation run) and mark standstill rows (the estimation run's speed threshold for both)."""
+    the estimation run) and mark standstill and creeping rows (the estimation run's speed
+    thresholds for both)."""
     s, pre_info = _estimation_signals(est, cfg, held_out=val is None)
+    creep = cfg.creep_fraction * s.v_scale
+
+    def creeping(sig: Signals, rows: Array) -> Array:
+        return rows & ~sig.stuck & (np.abs(sig.rows["qd"]) >= creep)
+
     if val is not None:
         v = Signals(val, s.pre, q_range=s.q_range, rest_speed=s.rest_speed)
-        return Split(s, np.ones(s.n_rows, bool), v, np.ones(v.n_rows, bool), val.source, preprocessing=pre_info)
+        e_rows, v_rows = np.ones(s.n_rows, bool), np.ones(v.n_rows, bool)
+        return Split(s, e_rows, v, v_rows, val.source, est_creep=creeping(s, e_rows), val_creep=creeping(v, v_rows), preprocessing=pre_info)
     val_mask, blocks = _held_out_blocks(s.n_rows, cfg)
-    return Split(s, ~val_mask, s, val_mask, f"{est.source} ({blocks})", preprocessing=pre_info)
+    return Split(s, ~val_mask, s, val_mask, f"{est.source} ({blocks})", est_creep=creeping(s, ~val_mask), val_creep=creeping(s, val_mask),
+                 preprocessing=pre_info)
 
 
 # ------------------------------------------------------------------------------------------
@@ -410,36 +443,48 @@ def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, r
 
 
 @dataclass(frozen=True)
-class ClearRows:
-    """Moving rows clear of reversals and stops (faster than the blur of the filter, and settled
-    after it in time): ``est`` of the estimation run (fits), ``val`` of the held-out run (tests)."""
+class TestRows:
+    """The rows of a test on part of the runs: ``est`` of the estimation run (fits), ``val`` of
+    the held-out run (tests)."""
 
     est: Array
     val: Array
 
 
-def clear_rows(split: Split) -> ClearRows:
-    """The moving rows of both runs clear of reversals and stops (speed from the estimation run)."""
+def clear_rows(split: Split) -> TestRows:
+    """The moving rows of both runs clear of reversals and stops (faster than the blur of the
+    filter, and settled after it in time; speed from the estimation run)."""
     def clear(sig: Signals, moving: Array) -> Array:
         return settled_rows(sig) & (np.abs(sig.rows["qd"]) >= dip_resolution(split.est)) & moving.astype(bool)
-    return ClearRows(clear(split.est, split.est_fit), clear(split.val, split.val_test))
+    return TestRows(clear(split.est, split.est_fit), clear(split.val, split.val_test))
 
 
-def heldout_clear(split: Split, before: LinearModel, after: LinearModel, chunk: int, clear: ClearRows, refit: bool) -> HeldOut | None:
-    """Compare two fitted models on the held-out rows clear of reversals and stops (``None`` when
-    too few).  With ``refit`` both are first fitted again on the estimation rows clear of them
-    (their nonlinear parameters kept): what an effect gains there must not be the baseline
-    parameters it frees from what the rows near reversals and stops pulled them to."""
-    if clear.val.sum() < 2 * chunk:
+def heldout_on(split: Split, before: LinearModel, after: LinearModel, chunk: int, rows: TestRows, refit: bool) -> HeldOut | None:
+    """Compare two fitted models on the held-out ``rows`` (``None`` when too few).  With ``refit``
+    both are first fitted again on the estimation ``rows`` (their nonlinear parameters kept):
+    clear of reversals and stops, what an effect gains there must not be the baseline
+    parameters it frees from what the rows near them pulled them to; on the creeping rows, the
+    models are judged where the effect's evidence lies."""
+    if rows.val.sum() < 2 * chunk:
         return None
     if refit:
-        if clear.est.sum() < max(2 * chunk, 4 * after.n_params):
+        if rows.est.sum() < max(2 * chunk, 4 * after.n_params):
             return None
         try:
-            before, after = before.copy().fit(split.est, clear.est), after.copy().fit(split.est, clear.est)
+            before, after = before.copy().fit(split.est, rows.est), after.copy().fit(split.est, rows.est)
         except (IdentificationError, np.linalg.LinAlgError):
             return None
-    return heldout(split, before, after, chunk, clear.val)
+    return heldout(split, before, after, chunk, rows.val)
+
+
+def effect_heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, eff: Effect) -> HeldOut:
+    """The held-out test of ``eff``'s place in a model: on the moving rows, or for a creeping
+    effect with both models fitted again on the moving and creeping rows and tested there."""
+    if eff.creeping:
+        h = heldout_on(split, before, after, chunk, split.creep_rows(), refit=True)
+        if h is not None:
+            return h
+    return heldout(split, before, after, chunk)
 
 
 # ------------------------------------------------------------------------------------------
@@ -578,6 +623,10 @@ class _State:
     tests: int = 0
 
 
+def _rows_judged(effect: str) -> str:
+    return "moving and creeping" if CATALOGUE[effect].creeping else "moving"
+
+
 def _check_names(cfg: LoopConfig) -> list[str]:
     return list(cfg.effects) if cfg.effects is not None else list(CATALOGUE)
 
@@ -626,14 +675,28 @@ def _align(model: LinearModel, split: Split, cfg: LoopConfig, st_align: dict[str
     return chosen
 
 
+def _baseline_reference(base: LinearModel, split: Split) -> tuple[dict[str, float], dict[str, float]]:
+    """The fitted baseline's physical parameters and the standard errors of its own, what the
+    plausibility of every later model is judged against."""
+    p = base.params()
+    return baseline_physics(base, split), {k: p[k]["std"] for k in ("M", "Fc", "Fv") if k in p}
+
+
+def _creeping(st: _State) -> _State:
+    """``st`` as a creeping effect is judged: fits and tests on the moving and creeping rows,
+    the baseline and the current model fitted there."""
+    split = st.split.creeping()
+    base = _fit(st.base.copy(), split)
+    phys, std = _baseline_reference(base, split)
+    return replace(st, split=split, base=base, base_phys=phys, base_std=std, model=_fit(st.model.copy(), split))
+
+
 def stage_baseline(split: Split, chunk: int, cfg: LoopConfig) -> _State:
     """Stage 2: the baseline on the moving estimation rows, then the timing alignment."""
     S = split.est
     base = _fit(LinearModel([BASE_TERMS[b] for b in cfg.baseline]), split)
     base_err = split.errors(base)
-    p = base.params()
-    phys = baseline_physics(base, split)
-    std = {k: p[k]["std"] for k in ("M", "Fc", "Fv") if k in p}
+    phys, std = _baseline_reference(base, split)
     alignment: dict[str, Any] = {}
     if cfg.sampling_hold:
         alignment = {"sampling_hold_s": 0.5 * S.dt, "applied": False, "shift_s": 0.0,
@@ -747,8 +810,10 @@ def _rechoose(model: LinearModel, names: Sequence[str], st: _State, cfg: LoopCon
     """``model`` with the grid parameters of the effects ``names`` chosen again, one after the
     other, each given all the other terms (smallest cross-validated error on the estimation rows,
     physically valid fits only)."""
-    split, dt = st.split, st.split.est.dt
+    dt = st.split.est.dt
     for name in names:
+        # a creeping effect's grid parameters are chosen where it is judged
+        split = st.split.creeping() if CATALOGUE[name].creeping else st.split
         if name == "input_delay":
             reduced = _without(model, name, dt)
         else:
@@ -788,7 +853,7 @@ def _backward(st: _State, cfg: LoopConfig, rnd: int, newest: str) -> None:
             if st.alignment and name == "input_delay":
                 reduced = _align(reduced, split, cfg, st.alignment, rnd, st.chunk)
             null = _fit(_reduced(st.model, name, dt), split) if CATALOGUE[name].null is not None else reduced
-            h = heldout(split, null, st.model, st.chunk)
+            h = effect_heldout(split, null, st.model, st.chunk, CATALOGUE[name])
             if h.p <= cfg.alpha and h.gain >= cfg.min_gain:
                 continue
             for s in st.steps:
@@ -818,11 +883,13 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             cands: list[tuple[float, Effect, LinearModel]] = []
             nulls: dict[str, LinearModel] = {}
             applicable = [CATALOGUE[n] for n in names if CATALOGUE[n].applicable(st.model)]
+            creep = _creeping(st) if any(eff.creeping for eff in applicable) else st
             for eff in applicable:
                 prog.update(note=f"round {rnd}: {eff.name}")
-                m, cv, why = _best_variant(eff, st.model, st, cfg, r_est, prog)
+                se = creep if eff.creeping else st
+                m, cv, why = _best_variant(eff, se.model, se, cfg, r_est, prog)
                 if m is not None:
-                    m, nulls[eff.name], gain_cv = _candidate(m, eff.name, list(st.model.effects), cv, st, cfg)
+                    m, nulls[eff.name], gain_cv = _candidate(m, eff.name, list(st.model.effects), cv, se, cfg)
                     cands.append((gain_cv, eff, m))
                 elif why is not None:
                     f = fnd.get(eff.evidence)
@@ -831,7 +898,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             level = cfg.level(rnd, len(applicable))
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
-                step, h, _ = _test_candidate(st, cfg, rnd, eff, m, nulls[eff.name], gain_cv, level, far, fnd)
+                step, h, _ = _test_candidate(creep if eff.creeping else st, cfg, rnd, eff, m, nulls[eff.name], gain_cv, level, far, fnd)
                 st.steps.append(step)
                 if not step.reason:
                     passing.append((h.gain, step, m))
@@ -848,7 +915,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             _, step, m = passing[0]
             step.accepted = True
             mv = step.evidence["moving_rows_error_pct"]["validation"]
-            step.reason = (f"held-out error {mv / (1.0 - step.evidence['validation_gain']):.3f} -> {mv:.3f} % on moving rows (t = {step.evidence['t_heldout']:.1f}, "
+            step.reason = (f"held-out error {mv / (1.0 - step.evidence['validation_gain']):.3f} -> {mv:.3f} % on {_rows_judged(step.effect)} rows (t = {step.evidence['t_heldout']:.1f}, "
                            f"p = {step.evidence['p_heldout']:.2g} <= {level:.2g}), BIC {step.evidence['delta_bic']:+.1f}")
             for _, other, _ in passing[1:]:
                 other.reason = f"passes, but {step.effect} gains more on the same held-out rows this round"
@@ -875,7 +942,7 @@ def _candidate(m: LinearModel, effect: str, others: list[str], cv: float, st: _S
 
 
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
-                    level: float, far: ClearRows, fnd: dict[str, Finding]) -> tuple[Step, HeldOut, HeldOut]:
+                    level: float, far: TestRows, fnd: dict[str, Finding]) -> tuple[Step, HeldOut, HeldOut]:
     """The tests of a candidate model ``m`` whose effect ``eff`` is tested against ``null``
     (fitted): its step (rejected; ``reason`` empty when every test passes), the held-out test
     against the null and the one against the current model."""
@@ -888,7 +955,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     # the effect, or its null part, may predict the held-out run worse than it)
     h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects or eff.null is not None else h
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
-    h_far = heldout_clear(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
+    h_far = heldout_on(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
     dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
     change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
     ev: dict[str, Any] = {}
@@ -899,6 +966,8 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
               moving_rows_error_pct={"estimation": round(split.errors_moving(m)[0], 4), "validation": round(h.error_after, 4)},
               t_heldout=round(h.t, 2), p_heldout=float(f"{h.p:.3g}"),
               level=float(f"{level:.3g}"), delta_bic=round(float(dbic), 1), baseline_parameters=change)
+    if eff.creeping:
+        ev["judged_on"] = "moving and creeping rows (not stuck, faster than creep_fraction x the top speed)"
     if eff.null is not None:
         ev["tested_against"] = f"the current model plus {', '.join(eff.null(next(t for t in m.terms if t.name == eff.name)).param_names)} alone"
     reasons = []
@@ -929,7 +998,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     return Step(rnd, eff.name, False, "; ".join(reasons), ev, e_est, e_val, m.params(), m), h, h_cur
 
 
-def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], far: ClearRows, fnd: dict[str, Finding],
+def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], far: TestRows, fnd: dict[str, Finding],
                    prog: Progress) -> bool:
     """When nothing more enters, every accepted effect is tried replaced by every catalogue effect
     not in the model.  An effect can enter first as the nearest stand-in for another that the run
@@ -942,7 +1011,7 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
     gains most on the current model is made, then joint refit and backward elimination.  Returns
     whether one was made."""
     split, dt = st.split, st.split.est.dt
-    cv_cur = _cv(st.model, split, cfg)
+    creep = _creeping(st) if any(CATALOGUE[n].creeping for n in names) else st
     trials: list[tuple[str, Effect, LinearModel, LinearModel, float]] = []
     for out in list(st.model.effects):
         base = _fit(_without(st.model, out, dt), split)
@@ -952,17 +1021,19 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
             if name == out or name in st.model.effects or not eff.applicable(base):
                 continue
             prog.update(note=f"round {rnd}: {name} for {out}")
-            m, cv, _ = _best_variant(eff, base, st, cfg, r_est)
+            se = creep if eff.creeping else st
+            m, cv, _ = _best_variant(eff, base, se, cfg, r_est)
             if m is None:
                 continue
-            m, null, gain_cv = _candidate(m, name, list(base.effects), cv, st, cfg)
+            m, null, gain_cv = _candidate(m, name, list(base.effects), cv, se, cfg)
             trials.append((out, eff, m, null, gain_cv))
     level = cfg.level(rnd, len(trials))
     best: tuple[float, Step, LinearModel, str] | None = None
     for out, eff, m, null, gain_cv in trials:
-        step, _, h_cur = _test_candidate(st, cfg, rnd, eff, m, null, gain_cv, level, far, fnd)
+        se = creep if eff.creeping else st
+        step, _, h_cur = _test_candidate(se, cfg, rnd, eff, m, null, gain_cv, level, far, fnd)
         step.evidence["replaces"] = out
-        if not _cv(m, split, cfg) < cv_cur:
+        if not _cv(m, se.split, cfg) < _cv(se.model, se.split, cfg):
             step.reason = "; ".join(filter(None, [step.reason, f"no lower cross-validated error than the model with {out}"]))
         step.reason = step.reason and f"in place of {out}: {step.reason}"
         st.steps.append(step)
@@ -1008,7 +1079,7 @@ def _combine(a: LinearModel, b: LinearModel, b_name: str, dt: float) -> LinearMo
     return out
 
 
-def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, Effect, LinearModel]], far: ClearRows,
+def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, Effect, LinearModel]], far: TestRows,
                fnd: dict[str, Finding], prog: Progress) -> bool:
     """When no single effect passes, two may enter together: effects that are confounded (a
     position-dependent friction and force, a drift and a Stribeck curve) can each fail alone, the
@@ -1048,12 +1119,12 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
         passed = True
         for eff, other in ((ea, eb), (eb, ea)):
             reduced = _fit(_tested_against(both, eff.name, st), split)
-            hm = heldout(split, reduced, both, st.chunk)
+            hm = effect_heldout(split, reduced, both, st.chunk, eff)
             ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain >= cfg.min_gain
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
             far_level = eff.level_clear_of_reversals(both, level, cfg.alpha)
             if far_level is not None:
-                hf = heldout_clear(split, reduced, both, st.chunk, far, eff.refit_clear_of_reversals)
+                hf = heldout_on(split, reduced, both, st.chunk, far, eff.refit_clear_of_reversals)
                 ok = ok and hf is not None and hf.p <= far_level and (not eff.whole_motion or eff.consistency_only or hf.t >= cfg.t_threshold)
                 mg["t_heldout_away_from_reversals"] = round(hf.t, 2) if hf is not None else None
             marginals[eff.name] = mg
@@ -1125,6 +1196,10 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
         "rest_fraction": cfg.rest_fraction,
         "rest_speed": float(f"{S.rest_speed:.6g}"), "rest_speed_unit": "rad/s" if rot else "m/s",
         "estimation_rows_at_rest_pct": round(100.0 * float(1.0 - split.est_fit.sum() / max(split.est_rows.sum(), 1)), 2),
+        "creep_fraction": cfg.creep_fraction,
+        "creeping_rule": "rows slower than rest_speed but faster than creep_fraction x the same speed scale, where the measured position moves, "
+                         "are creeping: left out too, except where pre-sliding is chosen, fitted and tested (with the model it is tested against)",
+        "estimation_rows_creeping_pct": round(100.0 * float((split.est_creep.sum() - split.est_fit.sum()) / max(split.est_rows.sum(), 1)), 2),
         "validation_rows_at_rest_pct": round(100.0 * float(1.0 - split.val_test.sum() / max(split.val_rows.sum(), 1)), 2),
         "baseline_moving_rows_error_pct": {"estimation": round(be, 4), "validation": round(bv, 4)},
         "final_moving_rows_error_pct": {"estimation": round(fe, 4), "validation": round(fv_, 4)},
