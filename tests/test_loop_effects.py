@@ -181,3 +181,49 @@ def test_settled_rows_keep_clear_of_reversals_and_stops_by_the_filters_settling_
     assert not keep[dist < margin].any()
     # rows clear of the reversals and of the slow rows around them are all kept
     assert keep[(dist > margin + 2 * row_dt) & s.moving].all()
+
+
+def _creeping_axis(seed: int, v_creep: float = 4e-4, vmax: float = 0.1, n_moves: int = 16) -> AxisData:
+    """An axis whose reversals are crossed slowly: between fast moves (``vmax``) it creeps at
+    ``v_creep`` (0.4 % of ``vmax``, under the standstill speed) over 60-100 um, across a
+    Maxwell-slip contact of 20 N with break displacements of 5, 20 and 60 um."""
+    from gmsfric import models
+
+    rng = np.random.default_rng(seed)
+    dt = 1.0 / FS
+    pieces = []
+    ramp = v_creep * np.sin(0.5 * np.pi * np.arange(0.0, 0.02, dt) / 0.02)
+    for k in range(n_moves):
+        t_fast = rng.uniform(0.6, 1.0)
+        creep = np.full(int(rng.uniform(0.15, 0.25) / dt), v_creep)
+        tb = np.arange(0.0, t_fast, dt)
+        bell = v_creep + (vmax - v_creep) * 0.5 * (1.0 - np.cos(2.0 * np.pi * tb / t_fast))
+        rest = np.zeros(int(rng.uniform(0.1, 0.3) / dt))
+        pieces.append((-1.0) ** k * np.concatenate([ramp, creep, bell, creep, ramp[::-1], rest]))
+    v = np.concatenate(pieces)
+    t = dt * np.arange(v.size)
+    q = np.cumsum(v) * dt
+    qd = np.gradient(q, dt)
+    contact = models.MaxwellSlip(k=[8.0 / 5e-6, 6.0 / 20e-6, 6.0 / 60e-6], w=[8.0, 6.0, 6.0])
+    force = 20.0 * np.gradient(qd, dt) + 80.0 * qd + models.simulate_friction(contact, t, q) + 0.05 * rng.standard_normal(t.size)
+    return AxisData(t, np.round(q / RES) * RES, force, source=f"creeping axis {seed}")
+
+
+def test_presliding_crossed_slower_than_the_standstill_speed_is_judged_where_the_axis_creeps():
+    # the elastic range is crossed at 0.4 % of the top speed, under the standstill speed (1 %):
+    # on the moving rows alone the blocks have nothing to explain
+    est, val = _creeping_axis(1), _creeping_axis(2)
+    only = dict(progress=False, effects=("presliding_hysteresis",))
+    found = run_loop(est, val, LoopConfig(**only))
+    assert found.effects == ["presliding_hysteresis"]
+    step = next(s for s in found.steps if s.accepted)
+    assert step.evidence["judged_on"].startswith("moving and creeping rows")
+    assert found.standstill["estimation_rows_creeping_pct"] > 10.0
+    p = found.to_dict()["final"]["parameters"]
+    weights = {k: v["value"] for k, v in p.items() if k.startswith("w_")}
+    assert all(w > -2 * p[k]["std"] for k, w in weights.items())
+    # fitted on the rows it describes, the contact's 20 N is split between Coulomb and blocks
+    assert p["Fc"]["value"] + sum(weights.values()) == pytest.approx(20.0, rel=0.05)
+    # with no creeping rows (the creep speed at the standstill speed) the same data miss it
+    missed = run_loop(est, val, LoopConfig(creep_fraction=0.01, **only))
+    assert missed.effects == []

@@ -26,6 +26,8 @@ from gmsfric.loop.select import baseline_physics, make_split, paired_chunk_test
         (dict(t_threshold=-1.0), "t_threshold"),
         (dict(max_parameter_ratio=1.0), "max_parameter_ratio"),
         (dict(rest_fraction=0.7), "rest_fraction"),
+        (dict(creep_fraction=0.02), "creep_fraction"),
+        (dict(creep_fraction=-1e-3), "creep_fraction"),
         (dict(n_blocks=2), "n_blocks"),
         (dict(inner_folds=1.5), "inner_folds"),
         (dict(max_effects=True), "max_effects"),

@@ -232,6 +232,8 @@ class Split:
     val_creep: Array = field(default=None)  # type: ignore[assignment]
     #: How the position filter's cut-off was chosen (the JSON's ``preprocessing``).
     preprocessing: dict[str, Any] = field(default_factory=dict)
+    #: Which rows fits and tests use, for reports.
+    label: str = "moving"
 
     def __post_init__(self) -> None:
         if self.est_fit is None:
@@ -245,7 +247,7 @@ class Split:
 
     def creeping(self) -> "Split":
         """The same runs with the moving and creeping rows as the rows fits and tests use."""
-        return replace(self, est_fit=self.est_creep, val_test=self.val_creep)
+        return replace(self, est_fit=self.est_creep, val_test=self.val_creep, label="moving and creeping")
 
     def creep_rows(self) -> "TestRows":
         """The moving and creeping rows of both runs."""
@@ -621,10 +623,28 @@ class _State:
     steps: list[Step] = field(default_factory=list)
     findings: dict[str, list[Finding]] = field(default_factory=dict)
     tests: int = 0
+    #: The split on the moving rows (what the baseline, the plausibility and the report use) and
+    #: on the moving and creeping rows; ``split`` is one of them (:func:`_describe_rows`).
+    moving_split: Split = field(default=None)  # type: ignore[assignment]
+    creep_split: Split = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.moving_split is None:
+            self.moving_split = self.split
+        if self.creep_split is None:
+            self.creep_split = self.split.creeping()
 
 
-def _rows_judged(effect: str) -> str:
-    return "moving and creeping" if CATALOGUE[effect].creeping else "moving"
+def _describe_rows(st: _State) -> None:
+    """Fit and test on the rows the current model describes: the creeping rows are left out
+    because the baseline's ``sign(qd)`` of a filtered velocity is noise there; once a creeping
+    effect (pre-sliding, driven by the measured position) is in the model they join every fit
+    and test, and leave again with it."""
+    split = st.creep_split if any(CATALOGUE[e].creeping for e in st.model.effects if e in CATALOGUE) else st.moving_split
+    if split is not st.split:
+        st.split = split
+        st.model = _fit(st.model, split)
+        st.err = split.errors(st.model)
 
 
 def _check_names(cfg: LoopConfig) -> list[str]:
@@ -684,11 +704,10 @@ def _baseline_reference(base: LinearModel, split: Split) -> tuple[dict[str, floa
 
 def _creeping(st: _State) -> _State:
     """``st`` as a creeping effect is judged: fits and tests on the moving and creeping rows,
-    the baseline and the current model fitted there."""
-    split = st.split.creeping()
-    base = _fit(st.base.copy(), split)
-    phys, std = _baseline_reference(base, split)
-    return replace(st, split=split, base=base, base_phys=phys, base_std=std, model=_fit(st.model.copy(), split))
+    the current model fitted there."""
+    if st.split is st.creep_split:
+        return st
+    return replace(st, split=st.creep_split, model=_fit(st.model.copy(), st.creep_split))
 
 
 def stage_baseline(split: Split, chunk: int, cfg: LoopConfig) -> _State:
@@ -844,10 +863,11 @@ def _rechoose(model: LinearModel, names: Sequence[str], st: _State, cfg: LoopCon
 def _backward(st: _State, cfg: LoopConfig, rnd: int, newest: str) -> None:
     """Test every earlier effect again given all the others; one that no longer earns its place
     (``p > alpha`` or less than the minimum gain on the held-out rows) leaves the model."""
-    split, dt = st.split, st.split.est.dt
+    dt = st.split.est.dt
     changed = True
     while changed:
         changed = False
+        split = st.split
         for name in [e for e in st.model.effects if e != newest]:
             reduced = _fit(_without(st.model, name, dt), split)
             if st.alignment and name == "input_delay":
@@ -864,6 +884,7 @@ def _backward(st: _State, cfg: LoopConfig, rnd: int, newest: str) -> None:
                                  f"{100 * h.gain:.2f} % (t = {h.t:.2f}, p = {h.p:.2g})")
             st.model = reduced
             st.err = split.errors(reduced)
+            _describe_rows(st)
             changed = True
             break
 
@@ -915,12 +936,13 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             _, step, m = passing[0]
             step.accepted = True
             mv = step.evidence["moving_rows_error_pct"]["validation"]
-            step.reason = (f"held-out error {mv / (1.0 - step.evidence['validation_gain']):.3f} -> {mv:.3f} % on {_rows_judged(step.effect)} rows (t = {step.evidence['t_heldout']:.1f}, "
+            step.reason = (f"held-out error {mv / (1.0 - step.evidence['validation_gain']):.3f} -> {mv:.3f} % on {step.evidence['judged_on']} (t = {step.evidence['t_heldout']:.1f}, "
                            f"p = {step.evidence['p_heldout']:.2g} <= {level:.2g}), BIC {step.evidence['delta_bic']:+.1f}")
             for _, other, _ in passing[1:]:
                 other.reason = f"passes, but {step.effect} gains more on the same held-out rows this round"
             st.model = m
             st.err = split.errors(m)
+            _describe_rows(st)
             _joint_refit(st, cfg, rnd)
             _backward(st, cfg, rnd, step.effect)
             step.parameters = st.model.params() if step.effect in st.model.effects else step.parameters
@@ -957,7 +979,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
     h_far = heldout_on(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
     dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
-    change, implausible = _plausibility(st.base_phys, st.base_std, m, split, cfg)
+    change, implausible = _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)
     ev: dict[str, Any] = {}
     f = fnd.get(eff.evidence)
     if f is not None:
@@ -966,8 +988,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
               moving_rows_error_pct={"estimation": round(split.errors_moving(m)[0], 4), "validation": round(h.error_after, 4)},
               t_heldout=round(h.t, 2), p_heldout=float(f"{h.p:.3g}"),
               level=float(f"{level:.3g}"), delta_bic=round(float(dbic), 1), baseline_parameters=change)
-    if eff.creeping:
-        ev["judged_on"] = "moving and creeping rows (not stuck, faster than creep_fraction x the top speed)"
+    ev["judged_on"] = f"{split.label} rows"
     if eff.null is not None:
         ev["tested_against"] = f"the current model plus {', '.join(eff.null(next(t for t in m.terms if t.name == eff.name)).param_names)} alone"
     reasons = []
@@ -1052,6 +1073,7 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
             s.reason += f"; replaced in round {rnd} by {step.effect}"
     st.model = m
     st.err = split.errors(m)
+    _describe_rows(st)
     _joint_refit(st, cfg, rnd)
     _backward(st, cfg, rnd, step.effect)
     step.parameters = st.model.params() if step.effect in st.model.effects else step.parameters
@@ -1112,7 +1134,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             continue
         h = heldout(split, st.model, both, st.chunk)
         dbic = n_est * np.log(_sse(both, split) / sse_cur) + (both.n_params - st.model.n_params) * np.log(n_est)
-        change, implausible = _plausibility(st.base_phys, st.base_std, both, split, cfg)
+        change, implausible = _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg)
         if h.gain < cfg.min_gain or dbic >= 0 or implausible is not None or (best is not None and h.gain <= best[0]):
             continue
         marginals: dict[str, dict[str, Any]] = {}
@@ -1154,6 +1176,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     st.steps.extend(steps)
     st.model = both
     st.err = split.errors(both)
+    _describe_rows(st)
     _joint_refit(st, cfg, rnd)
     _backward(st, cfg, rnd, steps[1].effect)
     for s in steps:
@@ -1164,7 +1187,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
 
 def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
     """Stage 4: residual analysis of the final model, unexplained structure, the result."""
-    split = st.split
+    split = st.moving_split
     S, rows = split.est, split.est_fit
     y_hat = st.model.predict(S)
     r = S.y - y_hat
