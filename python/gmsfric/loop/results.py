@@ -238,6 +238,9 @@ def format_table(result: "LoopResult") -> str:
         v, shown = _units.to_display(ss["rest_speed"], "velocity", rot)
         lines.append(f"  standstill (|qd| < {float(v):.3g} {shown}) left out of fits and tests: {ss['estimation_rows_at_rest_pct']:.1f} % of estimation rows, "
                      f"{ss['validation_rows_at_rest_pct']:.1f} % of held-out rows")
+        if ss.get("creeping_rows_in_final_fit"):
+            lines.append(f"  of them, {ss['estimation_rows_creeping_pct']:.1f} % of estimation rows creep (the position moves): "
+                         "fitted and tested with pre-sliding in the model")
         del fu
     tm = d.get("timing") or {}
     for run, t in (tm.items() if "estimation" in tm else [("estimation", tm)]):

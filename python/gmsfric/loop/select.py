@@ -5,7 +5,11 @@ The loop runs in named stages (:func:`run_loop`):
 1. **prepare** -- preprocess both runs, choose the held-out rows, and mark standstill: rows where
    the axis is at rest carry a holding force anywhere up to break-away (set-valued stiction),
    which no regression column describes.  They are left out of every fit and every decision;
-   errors are reported on all rows (the recipe's figure) and on the moving rows.
+   errors are reported on all rows (the recipe's figure) and on the moving rows.  Rows slower
+   than the standstill speed where the measured position still moves are *creeping*: the sign of
+   the filtered velocity is noise there, so they are left out too, except where pre-sliding,
+   whose blocks follow the measured position, is chosen, fitted and tested (with the model it is
+   tested against); once it is in the model they join every fit and test.
 2. **baseline** -- IDIM-LS fit of the baseline on the moving estimation rows, then the timing
    alignment: the force shifted by a fraction of one sample, chosen by cross-validation and kept
    when held-out data confirm it.  A command held over each sample acts half a sample after its
@@ -249,10 +253,6 @@ class Split:
         """The same runs with the moving and creeping rows as the rows fits and tests use."""
         return replace(self, est_fit=self.est_creep, val_test=self.val_creep, label="moving and creeping")
 
-    def creep_rows(self) -> "TestRows":
-        """The moving and creeping rows of both runs."""
-        return TestRows(self.est_creep, self.val_creep)
-
     def errors(self, m: LinearModel) -> tuple[float, float]:
         """Estimation and held-out errors (%) on all rows (standstill included)."""
         e = relative_error(self.est.y[self.est_rows], m.predict(self.est)[self.est_rows])
@@ -445,48 +445,36 @@ def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, r
 
 
 @dataclass(frozen=True)
-class TestRows:
-    """The rows of a test on part of the runs: ``est`` of the estimation run (fits), ``val`` of
-    the held-out run (tests)."""
+class ClearRows:
+    """Moving rows clear of reversals and stops (faster than the blur of the filter, and settled
+    after it in time): ``est`` of the estimation run (fits), ``val`` of the held-out run (tests)."""
 
     est: Array
     val: Array
 
 
-def clear_rows(split: Split) -> TestRows:
-    """The moving rows of both runs clear of reversals and stops (faster than the blur of the
-    filter, and settled after it in time; speed from the estimation run)."""
+def clear_rows(split: Split) -> ClearRows:
+    """The moving rows of both runs clear of reversals and stops (speed from the estimation run)."""
     def clear(sig: Signals, moving: Array) -> Array:
         return settled_rows(sig) & (np.abs(sig.rows["qd"]) >= dip_resolution(split.est)) & moving.astype(bool)
-    return TestRows(clear(split.est, split.est_fit), clear(split.val, split.val_test))
+    return ClearRows(clear(split.est, split.est_fit), clear(split.val, split.val_test))
 
 
-def heldout_on(split: Split, before: LinearModel, after: LinearModel, chunk: int, rows: TestRows, refit: bool) -> HeldOut | None:
-    """Compare two fitted models on the held-out ``rows`` (``None`` when too few).  With ``refit``
-    both are first fitted again on the estimation ``rows`` (their nonlinear parameters kept):
-    clear of reversals and stops, what an effect gains there must not be the baseline
-    parameters it frees from what the rows near them pulled them to; on the creeping rows, the
-    models are judged where the effect's evidence lies."""
-    if rows.val.sum() < 2 * chunk:
+def heldout_clear(split: Split, before: LinearModel, after: LinearModel, chunk: int, clear: ClearRows, refit: bool) -> HeldOut | None:
+    """Compare two fitted models on the held-out rows clear of reversals and stops (``None`` when
+    too few).  With ``refit`` both are first fitted again on the estimation rows clear of them
+    (their nonlinear parameters kept): what an effect gains there must not be the baseline
+    parameters it frees from what the rows near reversals and stops pulled them to."""
+    if clear.val.sum() < 2 * chunk:
         return None
     if refit:
-        if rows.est.sum() < max(2 * chunk, 4 * after.n_params):
+        if clear.est.sum() < max(2 * chunk, 4 * after.n_params):
             return None
         try:
-            before, after = before.copy().fit(split.est, rows.est), after.copy().fit(split.est, rows.est)
+            before, after = before.copy().fit(split.est, clear.est), after.copy().fit(split.est, clear.est)
         except (IdentificationError, np.linalg.LinAlgError):
             return None
-    return heldout(split, before, after, chunk, rows.val)
-
-
-def effect_heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, eff: Effect) -> HeldOut:
-    """The held-out test of ``eff``'s place in a model: on the moving rows, or for a creeping
-    effect with both models fitted again on the moving and creeping rows and tested there."""
-    if eff.creeping:
-        h = heldout_on(split, before, after, chunk, split.creep_rows(), refit=True)
-        if h is not None:
-            return h
-    return heldout(split, before, after, chunk)
+    return heldout(split, before, after, chunk, clear.val)
 
 
 # ------------------------------------------------------------------------------------------
@@ -873,7 +861,7 @@ def _backward(st: _State, cfg: LoopConfig, rnd: int, newest: str) -> None:
             if st.alignment and name == "input_delay":
                 reduced = _align(reduced, split, cfg, st.alignment, rnd, st.chunk)
             null = _fit(_reduced(st.model, name, dt), split) if CATALOGUE[name].null is not None else reduced
-            h = effect_heldout(split, null, st.model, st.chunk, CATALOGUE[name])
+            h = heldout(split, null, st.model, st.chunk)
             if h.p <= cfg.alpha and h.gain >= cfg.min_gain:
                 continue
             for s in st.steps:
@@ -964,7 +952,7 @@ def _candidate(m: LinearModel, effect: str, others: list[str], cv: float, st: _S
 
 
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
-                    level: float, far: TestRows, fnd: dict[str, Finding]) -> tuple[Step, HeldOut, HeldOut]:
+                    level: float, far: ClearRows, fnd: dict[str, Finding]) -> tuple[Step, HeldOut, HeldOut]:
     """The tests of a candidate model ``m`` whose effect ``eff`` is tested against ``null``
     (fitted): its step (rejected; ``reason`` empty when every test passes), the held-out test
     against the null and the one against the current model."""
@@ -977,7 +965,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     # the effect, or its null part, may predict the held-out run worse than it)
     h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects or eff.null is not None else h
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
-    h_far = heldout_on(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
+    h_far = heldout_clear(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
     dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
     change, implausible = _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)
     ev: dict[str, Any] = {}
@@ -1019,7 +1007,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     return Step(rnd, eff.name, False, "; ".join(reasons), ev, e_est, e_val, m.params(), m), h, h_cur
 
 
-def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], far: TestRows, fnd: dict[str, Finding],
+def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], far: ClearRows, fnd: dict[str, Finding],
                    prog: Progress) -> bool:
     """When nothing more enters, every accepted effect is tried replaced by every catalogue effect
     not in the model.  An effect can enter first as the nearest stand-in for another that the run
@@ -1101,7 +1089,7 @@ def _combine(a: LinearModel, b: LinearModel, b_name: str, dt: float) -> LinearMo
     return out
 
 
-def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, Effect, LinearModel]], far: TestRows,
+def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, Effect, LinearModel]], far: ClearRows,
                fnd: dict[str, Finding], prog: Progress) -> bool:
     """When no single effect passes, two may enter together: effects that are confounded (a
     position-dependent friction and force, a drift and a Stribeck curve) can each fail alone, the
@@ -1111,42 +1099,44 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     test given the other, with the minimum gain (so that a real effect cannot carry a false one in),
     at the level of the next round split over the pairs tried, and the pair together passes the
     BIC and the plausibility of the baseline.  Returns whether a pair entered."""
-    split, dt = st.split, st.split.est.dt
+    dt = st.split.est.dt
     screened = [(eff, m) for g, eff, m in cands if g > 0]
     pairs = [(screened[i], screened[j]) for i in range(len(screened)) for j in range(i + 1, len(screened))]
     if not pairs:
         return False
     level = cfg.level(rnd + 1, len(pairs))
-    n_est = int(split.est_fit.sum())
-    sse_cur = _sse(st.model, split)
+    creep = _creeping(st) if any(eff.creeping for eff, _ in screened) else st
     best: tuple[float, list[Step], LinearModel] | None = None
     for (ea, ma), (eb, mb) in pairs:
         prog.update(note=f"round {rnd}: {ea.name} + {eb.name}")
+        ps = creep if ea.creeping or eb.creeping else st
+        split = ps.split
+        n_est = int(split.est_fit.sum())
         try:
             both = _fit(_combine(ma, mb, eb.name, dt), split)
-            if any(e.check(both, split.est) is not None for e in (ea, eb)) or heldout(split, st.model, both, st.chunk).gain < cfg.min_gain:
+            if any(e.check(both, split.est) is not None for e in (ea, eb)) or heldout(split, ps.model, both, st.chunk).gain < cfg.min_gain:
                 continue
             # each member was fitted alone, partly absorbing the other: choose both again together
-            both = _fit(_rechoose(both, [ea.name, eb.name], st, cfg), split)
+            both = _fit(_rechoose(both, [ea.name, eb.name], ps, cfg), split)
             if any(e.check(both, split.est) is not None for e in (ea, eb)):
                 continue
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             continue
-        h = heldout(split, st.model, both, st.chunk)
-        dbic = n_est * np.log(_sse(both, split) / sse_cur) + (both.n_params - st.model.n_params) * np.log(n_est)
+        h = heldout(split, ps.model, both, st.chunk)
+        dbic = n_est * np.log(_sse(both, split) / _sse(ps.model, split)) + (both.n_params - ps.model.n_params) * np.log(n_est)
         change, implausible = _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg)
         if h.gain < cfg.min_gain or dbic >= 0 or implausible is not None or (best is not None and h.gain <= best[0]):
             continue
         marginals: dict[str, dict[str, Any]] = {}
         passed = True
         for eff, other in ((ea, eb), (eb, ea)):
-            reduced = _fit(_tested_against(both, eff.name, st), split)
-            hm = effect_heldout(split, reduced, both, st.chunk, eff)
+            reduced = _fit(_tested_against(both, eff.name, ps), split)
+            hm = heldout(split, reduced, both, st.chunk)
             ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain >= cfg.min_gain
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
             far_level = eff.level_clear_of_reversals(both, level, cfg.alpha)
             if far_level is not None:
-                hf = heldout_on(split, reduced, both, st.chunk, far, eff.refit_clear_of_reversals)
+                hf = heldout_clear(split, reduced, both, st.chunk, far, eff.refit_clear_of_reversals)
                 ok = ok and hf is not None and hf.p <= far_level and (not eff.whole_motion or eff.consistency_only or hf.t >= cfg.t_threshold)
                 mg["t_heldout_away_from_reversals"] = round(hf.t, 2) if hf is not None else None
             marginals[eff.name] = mg
@@ -1175,7 +1165,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     _, steps, both = best
     st.steps.extend(steps)
     st.model = both
-    st.err = split.errors(both)
+    st.err = st.split.errors(both)
     _describe_rows(st)
     _joint_refit(st, cfg, rnd)
     _backward(st, cfg, rnd, steps[1].effect)
@@ -1223,6 +1213,7 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
         "creeping_rule": "rows slower than rest_speed but faster than creep_fraction x the same speed scale, where the measured position moves, "
                          "are creeping: left out too, except where pre-sliding is chosen, fitted and tested (with the model it is tested against)",
         "estimation_rows_creeping_pct": round(100.0 * float((split.est_creep.sum() - split.est_fit.sum()) / max(split.est_rows.sum(), 1)), 2),
+        "creeping_rows_in_final_fit": st.split is st.creep_split,
         "validation_rows_at_rest_pct": round(100.0 * float(1.0 - split.val_test.sum() / max(split.val_rows.sum(), 1)), 2),
         "baseline_moving_rows_error_pct": {"estimation": round(be, 4), "validation": round(bv, 4)},
         "final_moving_rows_error_pct": {"estimation": round(fe, 4), "validation": round(fv_, 4)},
