@@ -339,24 +339,13 @@ def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
 # Statistics
 
 
-#: Contiguous blocks per cross-validation fold, spread over the run (block ``b`` in fold
-#: ``b mod K``).  With one block per fold, a fold of a sine sweep or of a run whose operating range
-#: changes over time is a part of the motion the other folds never saw, and the cross-validated
-#: error measures extrapolation to it: a position force of degree 8 that fits the sweep to 1.7 %
-#: cross-validated 16 times worse than three harmonics that fit it to 12 % (and predict the
-#: held-out run to 4.6 % against 1.5 %).  Blocks stay long (a twentieth of the rows, a second
-#: or more) against the residual's correlation time.
-CV_BLOCKS_PER_FOLD = 4
-
-
 def _cv_sse(X: Array, y: Array, folds: int) -> float:
-    """Blocked K-fold cross-validated SSE, from per-fold normal equations (columns scaled); each
-    fold is :data:`CV_BLOCKS_PER_FOLD` contiguous blocks spread over the rows."""
+    """Blocked K-fold cross-validated SSE, from per-fold normal equations (columns scaled)."""
     n = y.size
     scale = np.sqrt((X**2).sum(axis=0))
     scale[scale == 0] = 1.0
     Xs = X / scale
-    idx = ((np.arange(n) * folds * CV_BLOCKS_PER_FOLD) // n) % folds
+    idx = np.minimum((np.arange(n) * folds) // n, folds - 1)
     G = [(Xs[idx == k].T @ Xs[idx == k], Xs[idx == k].T @ y[idx == k]) for k in range(folds)]
     GT = sum(g for g, _ in G)
     bT = sum(b for _, b in G)
