@@ -491,35 +491,11 @@ def _cv_choosing(effect: str, m: LinearModel, st: "_State", cfg: LoopConfig) -> 
     and stops (:attr:`Effect.refit_clear_of_reversals`, a delay) on those rows (when there are
     enough): near stops the filters' blur pulls a delay long (4.9 ms planted, 7.5 ms chosen on all
     moving rows, 3.5 ms clear of them), and what it is confirmed on is where it is chosen."""
-    rows = _choosing_rows(effect, m, st)
-    if rows is None:
+    eff = CATALOGUE.get(effect)
+    rows = st.clear.est if st.clear is not None and eff is not None and eff.refit_clear_of_reversals else None
+    if rows is None or rows.sum() < max(MIN_ROWS_TO_CHOOSE_CUTOFF, 4 * m.n_params):
         return _cv(m, st.split, cfg)
     return _cv_sse(m.X(st.split.est)[rows], st.split.est.y[rows], cfg.inner_folds)
-
-
-def _choosing_rows(effect: str, m: LinearModel, st: "_State") -> Array | None:
-    """The estimation rows an effect is chosen and judged on when they are not the moving rows:
-    those clear of reversals and stops for an effect confirmed there with both models fitted
-    again (:attr:`Effect.refit_clear_of_reversals`), when there are enough of them."""
-    eff = CATALOGUE.get(effect)
-    if st.clear is None or eff is None or not eff.refit_clear_of_reversals:
-        return None
-    rows = st.clear.est
-    return rows if rows.sum() >= max(MIN_ROWS_TO_CHOOSE_CUTOFF, 4 * m.n_params) else None
-
-
-def _bic_change(before: LinearModel, after: LinearModel, eff: Effect, st: "_State") -> float:
-    """BIC of ``after`` minus that of ``before`` (both fitted), on the rows the effect is chosen
-    on (both fitted again there when those are not the moving rows)."""
-    S = st.split.est
-    rows = _choosing_rows(eff.name, after, st)
-    if rows is None:
-        rows = st.split.est_fit
-    else:
-        before, after = before.copy().fit(S, rows), after.copy().fit(S, rows)
-    n = int(rows.sum())
-    sse = [float(np.sum((S.y - m.predict(S))[rows] ** 2)) for m in (before, after)]
-    return n * np.log(sse[1] / sse[0]) + (after.n_params - before.n_params) * np.log(n)
 
 
 def _cv(m: LinearModel, split: Split, cfg: LoopConfig) -> float:
@@ -997,6 +973,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     (fitted): its step (rejected; ``reason`` empty when every test passes), the held-out test
     against the null and the one against the current model."""
     split = st.split
+    n_est = int(split.est_fit.sum())
     _fit(m, split)
     e_est, e_val = split.errors(m)
     h = heldout(split, null, m, st.chunk)
@@ -1005,7 +982,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects or eff.null is not None else h
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
     h_far = heldout_clear(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
-    dbic = _bic_change(null, m, eff, st)
+    dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
     change, implausible = _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)
     ev: dict[str, Any] = {}
     f = fnd.get(eff.evidence)
