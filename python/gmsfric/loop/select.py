@@ -485,19 +485,6 @@ def _fit(m: LinearModel, split: Split) -> LinearModel:
     return m.fit(split.est, split.est_fit)
 
 
-def _cv_choosing(effect: str, m: LinearModel, st: "_State", cfg: LoopConfig) -> float:
-    """Cross-validated SSE by which an effect's variants are chosen and its gain is judged: on the
-    moving estimation rows, or for an effect confirmed with both models fitted clear of reversals
-    and stops (:attr:`Effect.refit_clear_of_reversals`, a delay) on those rows (when there are
-    enough): near stops the filters' blur pulls a delay long (4.9 ms planted, 7.5 ms chosen on all
-    moving rows, 3.5 ms clear of them), and what it is confirmed on is where it is chosen."""
-    eff = CATALOGUE.get(effect)
-    rows = st.clear.est if st.clear is not None and eff is not None and eff.refit_clear_of_reversals else None
-    if rows is None or rows.sum() < max(MIN_ROWS_TO_CHOOSE_CUTOFF, 4 * m.n_params):
-        return _cv(m, st.split, cfg)
-    return _cv_sse(m.X(st.split.est)[rows], st.split.est.y[rows], cfg.inner_folds)
-
-
 def _cv(m: LinearModel, split: Split, cfg: LoopConfig) -> float:
     """Blocked cross-validated SSE on the moving estimation rows."""
     X = m.X(split.est)[split.est_fit]
@@ -628,8 +615,6 @@ class _State:
     #: on the moving and creeping rows; ``split`` is one of them (:func:`_describe_rows`).
     moving_split: Split = field(default=None)  # type: ignore[assignment]
     creep_split: Split = field(default=None)  # type: ignore[assignment]
-    #: The moving rows clear of reversals and stops (set by the select stage).
-    clear: ClearRows | None = None
 
     def __post_init__(self) -> None:
         if self.moving_split is None:
@@ -757,13 +742,13 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
                     why = w
                     is_probe = eff.probe is not None and eff.probe(m.params(), st.split.est)
                     if is_probe or (eff.contested is not None and eff.contested(m.params(), st.split.est)):
-                        cv_bad = _cv_choosing(eff.name, m, st, cfg)
+                        cv_bad = _cv(m, st.split, cfg)
                         if is_probe and (best_invalid is None or cv_bad < best_invalid[0]):
                             best_invalid = (cv_bad, w)
                         if not is_probe and (contested is None or cv_bad < contested[0]):
                             contested = (cv_bad, m)
                     continue
-            cv = _cv_choosing(eff.name, m, st, cfg)
+            cv = _cv(m, st.split, cfg)
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             continue
         if best is None or cv < best[0]:
@@ -796,7 +781,7 @@ def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg:
 
     def objective(z: Array) -> float:
         try:
-            return _cv_choosing(eff.name, variant(z), st, cfg)
+            return _cv(variant(z), st.split, cfg)
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             return np.inf
 
@@ -846,21 +831,20 @@ def _rechoose(model: LinearModel, names: Sequence[str], st: _State, cfg: LoopCon
         variants = CATALOGUE[name].variants(reduced, split.est, np.where(split.est_fit, r, np.nan))
         if len(variants) < 2:
             continue
-        rows_st = replace(st, split=split)
-        cur_cv = _cv_choosing(name, model, rows_st, cfg)
+        cur_cv = _cv(model, split, cfg)
         eff = CATALOGUE[name]
         for v in variants:
             cand = _with_delay(model, v.delay, dt) if name == "input_delay" else _replace_term(model, next(t for t in v.terms if t.name == name))
             try:
                 if eff.physical is not None and eff.check(_fit(cand, split), split.est) is not None:
                     continue
-                cv = _cv_choosing(name, cand, rows_st, cfg)
+                cv = _cv(cand, split, cfg)
             except (IdentificationError, np.linalg.LinAlgError, ValueError):
                 continue
             if cv < cur_cv:
                 cur_cv, model = cv, cand
         if eff.refine is not None:
-            (cur_cv, model), _ = _refine_hyper(eff, (cur_cv, model), rows_st, cfg)
+            (cur_cv, model), _ = _refine_hyper(eff, (cur_cv, model), st, cfg)
     return model
 
 
@@ -897,7 +881,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
     """Stage 3: rounds of forward selection (corrected held-out test, competition on the same
     held-out rows), joint refit and backward elimination."""
     split = st.split
-    far = st.clear = clear_rows(split)  # the rows do not change from round to round
+    far = clear_rows(split)  # the rows do not change from round to round
     rnd = 0
     with Progress("gmsfric loop", enabled=cfg.progress) as prog:
         while len(st.model.effects) < cfg.max_effects:
@@ -961,10 +945,10 @@ def _candidate(m: LinearModel, effect: str, others: list[str], cv: float, st: _S
     null = _tested_against(m, effect, st)
     if others:
         m = _rechoose(m, others + [effect], st, cfg)
-        cv = _cv_choosing(effect, m, st, cfg)
+        cv = _cv(m, st.split, cfg)
         null = _rechoose(_tested_against(m, effect, st), others, st, cfg)
     null = _fit(null, st.split)
-    return m, null, 1.0 - cv / _cv_choosing(effect, null, st, cfg)
+    return m, null, 1.0 - cv / _cv(null, st.split, cfg)
 
 
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
