@@ -26,8 +26,9 @@ from gmsfric.loop.select import baseline_physics, make_split, paired_chunk_test
         (dict(t_threshold=-1.0), "t_threshold"),
         (dict(max_parameter_ratio=1.0), "max_parameter_ratio"),
         (dict(rest_fraction=0.7), "rest_fraction"),
-        (dict(creep_fraction=0.02), "creep_fraction"),
+        (dict(creep_fraction=0.5), "creep_fraction"),
         (dict(creep_fraction=-1e-3), "creep_fraction"),
+        (dict(creep_fraction=float("nan")), "creep_fraction"),
         (dict(n_blocks=2), "n_blocks"),
         (dict(inner_folds=1.5), "inner_folds"),
         (dict(max_effects=True), "max_effects"),
@@ -244,3 +245,18 @@ def test_a_real_effect_cannot_carry_a_false_one_into_the_model():
     favoured = [(1.0, eff, m) for _, eff, m in cands("position_dependent_force", "friction_drift")]
     assert not _pair_step(st, cfg, 1, favoured, far, fnd, prog)
     assert st.model.effects == before and not any(s.accepted for s in st.steps)
+
+
+def test_creeping_rows_lie_between_the_creep_and_the_standstill_speeds():
+    """Creeping rows are not stuck and no slower than the creep speed, and never faster than the
+    standstill speed: with the standstill speed at zero nothing creeps (a creep fraction above
+    the rest fraction is not an error)."""
+    data = simulate_rig(Rig(seed=7, fs=1000.0, duration=12.0))
+    split = make_split(data, None, LoopConfig(progress=False))
+    creeping = split.est_creep & ~split.est_fit
+    speed = np.abs(split.est.rows["qd"])
+    assert creeping.any() and not (creeping & split.est.stuck).any()
+    assert np.all(speed[creeping] >= 0.002 * split.est.v_scale) and np.all(speed[creeping] < split.est.rest_speed)
+    assert np.array_equal(split.est_fit & split.est_creep, split.est_fit)
+    none = make_split(data, None, LoopConfig(progress=False, rest_fraction=0.0))
+    assert np.array_equal(none.est_creep, none.est_fit) and np.array_equal(none.val_creep, none.val_test)

@@ -148,7 +148,8 @@ class LoopConfig:
         Rows slower than ``rest_fraction`` but at least this fraction of the speed scale, where the
         measured position moves (not stuck), are creeping: left out like standstill, except by the
         effects whose evidence lies there (pre-sliding, :attr:`Effect.creeping`), which are chosen,
-        fitted and tested on the moving and creeping rows (in [0, ``rest_fraction``]).
+        fitted and tested on the moving and creeping rows (in [0, 0.5); at or above
+        ``rest_fraction`` no row creeps).
     max_effects : int
         Upper bound on the number of added effects (>= 0).
     sampling_hold : bool
@@ -199,8 +200,8 @@ class LoopConfig:
         if not 0.0 <= rf < 0.5:
             raise InvalidInputError(f"`rest_fraction` must be in [0, 0.5), got {rf}")
         cf = finite("creep_fraction", self.creep_fraction)
-        if not 0.0 <= cf <= rf:
-            raise InvalidInputError(f"`creep_fraction` must be in [0, rest_fraction = {rf}], got {cf}")
+        if not 0.0 <= cf < 0.5:
+            raise InvalidInputError(f"`creep_fraction` must be in [0, 0.5), got {cf}")
         if isinstance(self.baseline, str) or not all(isinstance(b, str) for b in self.baseline):
             raise InvalidInputError(f"`baseline` must be a sequence of term names, got {self.baseline!r}")
         unknown = [b for b in self.baseline if b not in BASE_TERMS]
@@ -321,7 +322,7 @@ def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
     the estimation run) and mark standstill and creeping rows (the estimation run's speed
     thresholds for both)."""
     s, pre_info = _estimation_signals(est, cfg, held_out=val is None)
-    creep = cfg.creep_fraction * s.v_scale
+    creep = min(cfg.creep_fraction, cfg.rest_fraction) * s.v_scale
 
     def creeping(sig: Signals, rows: Array) -> Array:
         return rows & ~sig.stuck & (np.abs(sig.rows["qd"]) >= creep)
