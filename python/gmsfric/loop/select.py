@@ -684,13 +684,6 @@ def _align(model: LinearModel, split: Split, cfg: LoopConfig, st_align: dict[str
     return chosen
 
 
-def _baseline_reference(base: LinearModel, split: Split) -> tuple[dict[str, float], dict[str, float]]:
-    """The fitted baseline's physical parameters and the standard errors of its own, what the
-    plausibility of every later model is judged against."""
-    p = base.params()
-    return baseline_physics(base, split), {k: p[k]["std"] for k in ("M", "Fc", "Fv") if k in p}
-
-
 def _creeping(st: _State) -> _State:
     """``st`` as a creeping effect is judged: fits and tests on the moving and creeping rows,
     the current model fitted there."""
@@ -704,7 +697,9 @@ def stage_baseline(split: Split, chunk: int, cfg: LoopConfig) -> _State:
     S = split.est
     base = _fit(LinearModel([BASE_TERMS[b] for b in cfg.baseline]), split)
     base_err = split.errors(base)
-    phys, std = _baseline_reference(base, split)
+    p = base.params()
+    phys = baseline_physics(base, split)
+    std = {k: p[k]["std"] for k in ("M", "Fc", "Fv") if k in p}
     alignment: dict[str, Any] = {}
     if cfg.sampling_hold:
         alignment = {"sampling_hold_s": 0.5 * S.dt, "applied": False, "shift_s": 0.0,
@@ -821,7 +816,7 @@ def _rechoose(model: LinearModel, names: Sequence[str], st: _State, cfg: LoopCon
     dt = st.split.est.dt
     for name in names:
         # a creeping effect's grid parameters are chosen where it is judged
-        split = st.split.creeping() if CATALOGUE[name].creeping else st.split
+        split = st.creep_split if CATALOGUE[name].creeping else st.split
         if name == "input_delay":
             reduced = _without(model, name, dt)
         else:
