@@ -340,8 +340,13 @@ def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
 # Statistics
 
 
-def _cv_sse(X: Array, y: Array, folds: int) -> float:
-    """Blocked K-fold cross-validated SSE, from per-fold normal equations (columns scaled)."""
+def _cv_sse(X: Array, y: Array, folds: int, q: Array | None = None) -> float:
+    """Blocked K-fold cross-validated SSE, from per-fold normal equations (columns scaled).
+
+    With the rows' positions ``q``, a fold is scored only on its rows within the travel the other
+    folds cover: a run whose motion changes over time (a sweep's wide first cycles) leaves a fold
+    with travel the others never saw, where a position basis fitted without it can only guess, and
+    the choice between bases would reward the one that guesses best, not the one that fits."""
     n = y.size
     scale = np.sqrt((X**2).sum(axis=0))
     scale[scale == 0] = 1.0
@@ -357,7 +362,11 @@ def _cv_sse(X: Array, y: Array, folds: int) -> float:
         if not np.all(np.isfinite(A)):
             raise np.linalg.LinAlgError("non-finite normal equations")
         theta = _solve(A, bT - G[k][1])
-        r = y[idx == k] - Xs[idx == k] @ theta
+        scored = idx == k
+        if q is not None:
+            q_fit = q[idx != k]
+            scored &= (q >= q_fit.min()) & (q <= q_fit.max())
+        r = y[scored] - Xs[scored] @ theta
         sse += float(r @ r)
     return sse
 
@@ -489,7 +498,7 @@ def _fit(m: LinearModel, split: Split) -> LinearModel:
 def _cv(m: LinearModel, split: Split, cfg: LoopConfig) -> float:
     """Blocked cross-validated SSE on the moving estimation rows."""
     X = m.X(split.est)[split.est_fit]
-    return _cv_sse(X, split.est.y[split.est_fit], cfg.inner_folds)
+    return _cv_sse(X, split.est.y[split.est_fit], cfg.inner_folds, split.est.rows["q"][split.est_fit])
 
 
 def _sse(m: LinearModel, split: Split) -> float:
