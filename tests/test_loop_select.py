@@ -12,7 +12,7 @@ from gmsfric import InvalidInputError
 from gmsfric.loop import LoopConfig, run_loop
 from gmsfric.loop.data import AxisData
 from gmsfric.loop.rigs import Rig, simulate_rig
-from gmsfric.loop.select import baseline_physics, make_split, paired_chunk_test
+from gmsfric.loop.select import _cv_sse, baseline_physics, make_split, paired_chunk_test
 
 
 @pytest.mark.parametrize(
@@ -260,3 +260,22 @@ def test_creeping_rows_lie_between_the_creep_and_the_standstill_speeds():
     assert np.array_equal(split.est_fit & split.est_creep, split.est_fit)
     none = make_split(data, None, LoopConfig(progress=False, rest_fraction=0.0))
     assert np.array_equal(none.est_creep, none.est_fit) and np.array_equal(none.val_creep, none.val_test)
+
+
+def test_cross_validation_scores_a_fold_only_inside_the_travel_the_other_folds_cover():
+    # a sweep whose first fifth is twice as wide as the rest: a degree-9 polynomial fits
+    # sin(4 q) to the noise, but fitted without the wide cycles it cannot extrapolate to them
+    rng = np.random.default_rng(3)
+    n = 2000
+    t = np.linspace(0.0, 1.0, n)
+    q = np.where(t < 0.2, 1.0, 0.5) * np.sin(2 * np.pi * 15 * t)
+    y = np.sin(4 * q) + 0.01 * rng.standard_normal(n)
+    X = np.polynomial.legendre.legvander(q, 9)
+    inside = _cv_sse(X, y, 5, q)
+    assert inside < 1.5 * 0.01**2 * n, "inside the covered travel only the noise is left"
+    assert _cv_sse(X, y, 5) > 10 * inside
+    # a run that crosses its travel once leaves no fold inside the others': every row is scored
+    ramp = np.linspace(0.0, 1.0, n)
+    X_ramp = np.column_stack([np.ones(n), ramp])
+    y_ramp = np.sin(3 * ramp) + 0.01 * rng.standard_normal(n)
+    assert _cv_sse(X_ramp, y_ramp, 5, ramp) == _cv_sse(X_ramp, y_ramp, 5)

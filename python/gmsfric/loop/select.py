@@ -340,18 +340,32 @@ def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
 # Statistics
 
 
+#: Cells the travel is cut into to tell which of a fold's rows lie where the other folds have
+#: been (finer than the finest position table's intervals).
+CV_TRAVEL_CELLS = 64
+
+
 def _cv_sse(X: Array, y: Array, folds: int, q: Array | None = None) -> float:
     """Blocked K-fold cross-validated SSE, from per-fold normal equations (columns scaled).
 
     With the rows' positions ``q``, a fold is scored only on its rows within the travel the other
-    folds cover: a run whose motion changes over time (a sweep's wide first cycles) leaves a fold
+    folds cover (:data:`CV_TRAVEL_CELLS` cells of it): a run whose motion changes over time (a sweep's wide first cycles) leaves a fold
     with travel the others never saw, where a position basis fitted without it can only guess, and
-    the choice between bases would reward the one that guesses best, not the one that fits."""
+    the choice between bases would reward the one that guesses best, not the one that fits.  When
+    that leaves fewer than half the rows (a run that crosses its travel once), every row is scored."""
     n = y.size
     scale = np.sqrt((X**2).sum(axis=0))
     scale[scale == 0] = 1.0
     Xs = X / scale
     idx = np.minimum((np.arange(n) * folds) // n, folds - 1)
+    scored = np.ones(n, dtype=bool)
+    if q is not None and np.ptp(q) > 0:
+        cell = np.minimum(((q - q.min()) / np.ptp(q) * CV_TRAVEL_CELLS).astype(int), CV_TRAVEL_CELLS - 1)
+        for k in range(folds):
+            covered = np.bincount(cell[idx != k], minlength=CV_TRAVEL_CELLS) > 0
+            scored[idx == k] = covered[cell[idx == k]]
+        if scored.sum() < 0.5 * n:
+            scored[:] = True
     G = [(Xs[idx == k].T @ Xs[idx == k], Xs[idx == k].T @ y[idx == k]) for k in range(folds)]
     GT = sum(g for g, _ in G)
     bT = sum(b for _, b in G)
@@ -362,11 +376,8 @@ def _cv_sse(X: Array, y: Array, folds: int, q: Array | None = None) -> float:
         if not np.all(np.isfinite(A)):
             raise np.linalg.LinAlgError("non-finite normal equations")
         theta = _solve(A, bT - G[k][1])
-        scored = idx == k
-        if q is not None:
-            q_fit = q[idx != k]
-            scored &= (q >= q_fit.min()) & (q <= q_fit.max())
-        r = y[scored] - Xs[scored] @ theta
+        rows = (idx == k) & scored
+        r = y[rows] - Xs[rows] @ theta
         sse += float(r @ r)
     return sse
 
