@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import gmsfric
 from gmsfric.loop.data import AxisData
 from gmsfric.loop import LoopConfig, run_loop
 from gmsfric.loop.effects import CATALOGUE, _compliance_variants, _play, _presliding, _stribeck_ok, dip_resolution, stribeck_fall, velocity_resolution
@@ -228,40 +227,3 @@ def test_presliding_crossed_slower_than_the_standstill_speed_is_judged_where_the
     # with no creeping rows (the creep speed at the standstill speed) the same data miss it
     missed = run_loop(est, val, LoopConfig(creep_fraction=0.01, **only))
     assert missed.effects == []
-
-
-def _bump(q: np.ndarray) -> np.ndarray:
-    """A local position force the low-degree bases cannot follow: a 6 N bump 10 mm wide (sigma) and
-    a 3 N cable step over 12 mm, on 0.2 m of travel."""
-    return 6.0 * np.exp(-0.5 * ((q - 0.07) / 0.01) ** 2) + 3.0 * np.tanh((q - 0.13) / 0.012)
-
-
-def _sweep_axis(seed: int) -> AxisData:
-    """A force-driven axis on a sweep whose first cycles are the widest (the travel of the first
-    fifth of the run is seen nowhere else), with the position force of :func:`_bump`."""
-    rng = np.random.default_rng(seed)
-    dt = 1.0 / FS
-    t = np.arange(0.0, 20.0, dt)
-    amp = 0.1 * (1.0 - 0.5 * t / t[-1])
-    q = 0.1 + amp * np.sin(2 * np.pi * (0.4 * t + 0.01 * t**2) + rng.uniform(0, 2 * np.pi))
-    qd, qdd = np.gradient(q, dt), np.gradient(np.gradient(q, dt), dt)
-    force = 20.0 * qdd + 80.0 * qd + 10.0 * np.tanh(qd / 1e-3) + _bump(q) + 0.05 * rng.standard_normal(t.size)
-    return AxisData(t, np.round(q / RES) * RES, force, source=f"sweep axis {seed}")
-
-
-def test_a_local_position_force_is_fitted_as_a_table_on_a_sweep(tmp_path):
-    # a table follows the bump and the step; the best polynomial or periodic basis leaves 27 % of
-    # their range
-    est, val = _sweep_axis(1), _sweep_axis(2)
-    res = run_loop(est, val, LoopConfig(progress=False, effects=("position_dependent_force", "position_dependent_friction", "input_delay")))
-    assert res.effects == ["position_dependent_force"]
-    series = res.axis_model().effects.position_force
-    assert series is not None and series.kind == "table"
-    q = np.linspace(0.03, 0.17, 400)
-    miss = series(q) - _bump(q)
-    assert np.std(miss) < 0.06 * np.ptp(_bump(q)), "the table follows the bump and the step within 6 % of their range"
-    # the table travels with the model: the loop's JSON loads back to the same function of position
-    res.to_json(tmp_path / "loop.json")
-    back = gmsfric.load_model(tmp_path / "loop.json").effects.position_force
-    assert back is not None and back.kind == "table"
-    np.testing.assert_allclose(back(q), series(q), rtol=1e-9, atol=1e-9)

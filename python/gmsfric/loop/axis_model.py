@@ -38,13 +38,11 @@ _FLAT_VS = 1.0
 
 
 def _series(hyper: tuple, coef: np.ndarray, q_range: tuple[float, float]) -> PositionSeries:
-    """The loop's position basis (Legendre degree, table intervals, or Fourier periods and
-    harmonics) with its fitted coefficients."""
-    lo, hi = q_range
+    """The loop's position basis (Legendre degree, or Fourier periods and harmonics) with its
+    fitted coefficients."""
     if hyper[0] == 0:
+        lo, hi = q_range
         return PositionSeries.legendre(lo, hi, np.concatenate(([0.0], coef)))
-    if hyper[0] == 2:
-        return PositionSeries.table(np.linspace(lo, hi, int(hyper[1]) + 1), np.concatenate(([0.0], coef)))
     return PositionSeries.fourier(tuple(hyper[2:]), int(hyper[1]), coef)
 
 

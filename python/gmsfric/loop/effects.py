@@ -66,28 +66,16 @@ def _fourier(s: Signals, periods: tuple[float, ...], harmonics: int) -> Array:
     return np.column_stack(cols)
 
 
-def _table(s: Signals, intervals: int) -> Array:
-    """Hat functions on ``intervals + 1`` uniform knots over the estimation travel (linear
-    interpolation of a table, constant beyond), without the first knot's: the table's values
-    relative to its first one, whose level the constant terms carry."""
-    x = 0.5 * (_qnorm(s) + 1.0) * intervals
-    return np.column_stack([np.maximum(0.0, 1.0 - np.abs(x - j)) for j in range(1, intervals + 1)])
-
-
 def _basis(s: Signals, h: tuple) -> Array:
     kind = h[0]
     if kind == 0:  # legendre degree
         return _legendre(s, int(h[1]))
-    if kind == 2:  # table intervals
-        return _table(s, int(h[1]))
     return _fourier(s, tuple(h[2:]), int(h[1]))
 
 
 def _basis_names(prefix: str, h: tuple, rotary: bool = False) -> tuple[str, ...]:
     if h[0] == 0:
         return tuple(f"{prefix}_P{d}" for d in range(1, int(h[1]) + 1))
-    if h[0] == 2:
-        return tuple(f"{prefix}_T{j}" for j in range(1, int(h[1]) + 1))
     names = []
     unit = "mrad" if rotary else "mm"  # the period, in thousandths of the position unit
     for p in h[2:]:
@@ -455,16 +443,9 @@ def position_periodogram(grid: Array, prof: Array) -> tuple[Array, Array]:
     return freqs[1:], spec[1:]
 
 
-#: Intervals of the position tables tried (a compensation table, linearly interpolated): local
-#: shapes a low-degree polynomial cannot follow (a bump, a cable's step) over a fraction of the
-#: travel.  A table of 32 took a position force on 10 of 36 runs made from the real EMPS
-#: recordings where none was planted.
-POSITION_TABLE_INTERVALS = (8, 16)
-
-
 def _position_variants(model: LinearModel, s: Signals, r: Array, odd: bool, name: str) -> list[LinearModel]:
     prefix = "dFc_q" if odd else "Fq"
-    hypers: list[tuple] = [(0, d) for d in (1, 2, 3, 4, 6, 8)] + [(2, n) for n in POSITION_TABLE_INTERVALS]
+    hypers: list[tuple] = [(0, d) for d in (1, 2, 3, 4, 6, 8)]
     periods = position_periods(s, r, odd)
     for p in periods:
         for nh in (1, 2, 3):

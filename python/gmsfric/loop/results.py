@@ -44,7 +44,7 @@ _PARAMETER_QUANTITIES = {
 _PARAMETER_PATTERNS = (
     (re.compile(r"w_(block\d+|switch)$"), "force"),
     (re.compile(r"Delta_(block\d+|switch)$"), "position"),
-    (re.compile(r"(dFc_q|Fq)_(P\d+|T\d+|(sin|cos)\d+_.*)$"), "force"),
+    (re.compile(r"(dFc_q|Fq)_(P\d+|(sin|cos)\d+_.*)$"), "force"),
 )
 
 

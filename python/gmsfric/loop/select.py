@@ -341,7 +341,7 @@ def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
 
 
 #: Cells the travel is cut into to tell which of a fold's rows lie where the other folds have
-#: been (finer than the finest position table's intervals).
+#: been (finer than the shapes the position bases follow).
 CV_TRAVEL_CELLS = 64
 
 
