@@ -253,8 +253,7 @@ def test_a_stribeck_dip_only_at_reversals_is_refused(monkeypatch):
 
     runs = _campaign_runs(33, "clean-233-clean")
     assert run_loop(*runs, LoopConfig(progress=False, effects=("stribeck",))).effects == []
-    # the dip gains 3.5 % on the held-out rows: the minimum gain is lowered so the check alone decides
-    cfg = LoopConfig(progress=False, effects=("stribeck",), preprocessing=_recipe_filter(runs), min_gain=0.03)
+    cfg = LoopConfig(progress=False, effects=("stribeck",), preprocessing=_recipe_filter(runs))
     res = run_loop(*runs, cfg)
     assert res.effects == []
     refused = [s for s in res.steps if s.effect == "stribeck" and "not confirmed away from reversals" in s.reason]
@@ -367,21 +366,24 @@ def test_accepted_effects_are_chosen_again_with_each_candidate(monkeypatch):
 
 def test_the_joint_refit_runs_until_choosing_again_changes_nothing(monkeypatch):
     """A transmission resonance and a Maxwell-slip contact (the campaign's seed 37): pre-sliding
-    enters, then the timing alignment moves the force by one sample.  Given that shift the blocks'
-    break displacements are chosen again; a single pass of the joint refit, made before the shift,
-    keeps a cross-validated error 12 % higher.  Passes until nothing changes reach a model that
-    choosing again no longer improves."""
+    enters with one block, then the timing alignment moves the force by one sample.  Given that
+    shift, two blocks fit far better; a single pass of the joint refit, made before the shift,
+    keeps one block and a cross-validated error 28 % higher.  Passes until nothing changes reach
+    a model that choosing again no longer improves."""
     from gmsfric.loop import LoopConfig, run_loop, select
 
     runs = _campaign_runs(37, "pair-159-presliding_hysteresis+compliance")
-    cfg = LoopConfig(progress=False, effects=("compliance", "presliding_hysteresis"))
+    # on the moving rows, as found: with the creeping rows pre-sliding enters with three blocks
+    cfg = LoopConfig(progress=False, effects=("compliance", "presliding_hysteresis"), creep_fraction=0.01)
     res = run_loop(*runs, cfg)
     assert res.effects == ["compliance", "presliding_hysteresis"]
+    blocks = [n for n in res.final.params() if n.startswith("w_block")]
     cv = select._cv(res.final, res.split, cfg)
     monkeypatch.setattr(select, "JOINT_REFIT_PASSES", 1)
     once = run_loop(*runs, cfg)
     assert once.effects == res.effects
-    assert cv < 0.95 * select._cv(once.final, once.split, cfg)
+    assert len([n for n in once.final.params() if n.startswith("w_block")]) < len(blocks)
+    assert cv < 0.8 * select._cv(once.final, once.split, cfg)
 
 
 def test_a_stand_in_that_entered_first_is_exchanged(monkeypatch):
@@ -512,9 +514,9 @@ def test_a_resonance_needs_only_a_consistent_gain_away_from_reversals(monkeypatc
 def test_a_delay_must_gain_clear_of_stops_when_both_models_are_fitted_there(monkeypatch):
     """A clean rotary rig whose friction is 2.6 times its largest inertial force (the campaign's
     seed 57): fitted on all moving rows, the baseline's inertia comes out 22 % high from what the
-    filters make of the stops, and a "delay" fitted with it gains on the held-out rows clear of the
-    stops (t = 6.2) by undoing that bias.  Fitted where the filters have settled, the baseline
-    needs no delay, and none is confirmed there."""
+    filters make of the stops, and a 1.8 ms "delay" fitted with it gains on the held-out rows
+    clear of the stops (t = 6.7) by undoing that bias.  Fitted where the filters have settled,
+    the baseline needs no delay, and none is named; without that refit the false delay enters."""
     import dataclasses
 
     from gmsfric.loop import LoopConfig, run_loop
@@ -525,11 +527,10 @@ def test_a_delay_must_gain_clear_of_stops_when_both_models_are_fitted_there(monk
     res = run_loop(*runs, cfg)
     assert res.effects == []
     step = next(s for s in res.steps if s.effect == "input_delay")
-    assert "not confirmed away from reversals" in step.reason and step.evidence["t_heldout_away_from_reversals"] < 1.0
+    assert "not confirmed away from reversals" in step.reason and step.evidence["t_heldout"] >= cfg.t_threshold
     fitted_on_all = dataclasses.replace(effects.CATALOGUE["input_delay"], refit_clear_of_reversals=False)
     monkeypatch.setitem(effects.CATALOGUE, "input_delay", fitted_on_all)
-    step = next(s for s in run_loop(*runs, cfg).steps if s.effect == "input_delay")
-    assert step.evidence["t_heldout_away_from_reversals"] >= 2 * cfg.t_threshold
+    assert run_loop(*runs, cfg).effects == ["input_delay"]
 
 
 def test_a_position_basis_is_chosen_where_the_folds_share_the_travel(monkeypatch):
@@ -545,6 +546,6 @@ def test_a_position_basis_is_chosen_where_the_folds_share_the_travel(monkeypatch
     res = run_loop(*runs, cfg)
     assert set(res.effects) == {"position_dependent_force", "presliding_hysteresis"}
     assert any(n.startswith("Fq_P") for n in res.final.params())
-    whole_folds = lambda m, split, c: select._cv_sse(m.X(split.est)[split.est_fit], split.est.y[split.est_fit], c.inner_folds)  # noqa: E731
+    whole_folds = lambda m, split, c, by_travel=None: select._cv_sse(m.X(split.est)[split.est_fit], split.est.y[split.est_fit], c.inner_folds)  # noqa: E731
     monkeypatch.setattr(select, "_cv", whole_folds)
     assert run_loop(*runs, cfg).effects == ["position_dependent_force"]

@@ -506,10 +506,25 @@ def _fit(m: LinearModel, split: Split) -> LinearModel:
     return m.fit(split.est, split.est_fit)
 
 
-def _cv(m: LinearModel, split: Split, cfg: LoopConfig) -> float:
-    """Blocked cross-validated SSE on the moving estimation rows."""
+#: Effects whose columns are functions of the position (:func:`_cv` scores them by travel).
+POSITION_EFFECTS = frozenset({"position_dependent_friction", "position_dependent_force"})
+
+
+def _by_travel(*models: LinearModel) -> bool:
+    return any(t.name in POSITION_EFFECTS for m in models for t in m.terms)
+
+
+def _cv(m: LinearModel, split: Split, cfg: LoopConfig, by_travel: bool | None = None) -> float:
+    """Blocked cross-validated SSE on the moving estimation rows.
+
+    A model with a position basis (``by_travel``, by default whether ``m`` has one) is scored only
+    where the folds share the travel (:func:`_cv_sse`): a position basis can only guess travel it
+    has not seen.  Other models are scored on every row: a time effect (a warm-up) may show most
+    at the start of a run, whose travel the later folds need not cover.  Two models compared with
+    each other must be scored alike."""
     X = m.X(split.est)[split.est_fit]
-    return _cv_sse(X, split.est.y[split.est_fit], cfg.inner_folds, split.est.rows["q"][split.est_fit])
+    q = split.est.rows["q"][split.est_fit] if (_by_travel(m) if by_travel is None else by_travel) else None
+    return _cv_sse(X, split.est.y[split.est_fit], cfg.inner_folds, q)
 
 
 def _sse(m: LinearModel, split: Split) -> float:
@@ -912,9 +927,9 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             for eff in applicable:
                 prog.update(note=f"round {rnd}: {eff.name}")
                 se = creep if eff.creeping else st
-                m, cv, why = _best_variant(eff, se.model, se, cfg, r_est, prog)
+                m, _, why = _best_variant(eff, se.model, se, cfg, r_est, prog)
                 if m is not None:
-                    m, nulls[eff.name], gain_cv = _candidate(m, eff.name, list(st.model.effects), cv, se, cfg)
+                    m, nulls[eff.name], gain_cv = _candidate(m, eff.name, list(st.model.effects), se, cfg)
                     cands.append((gain_cv, eff, m))
                 elif why is not None:
                     f = fnd.get(eff.evidence)
@@ -952,8 +967,8 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             step.parameters = st.model.params() if step.effect in st.model.effects else step.parameters
 
 
-def _candidate(m: LinearModel, effect: str, others: list[str], cv: float, st: _State, cfg: LoopConfig) -> tuple[LinearModel, LinearModel, float]:
-    """A candidate variant ``m`` (CV SSE ``cv``) of ``effect`` on top of the accepted ``others``:
+def _candidate(m: LinearModel, effect: str, others: list[str], st: _State, cfg: LoopConfig) -> tuple[LinearModel, LinearModel, float]:
+    """A candidate variant ``m`` of ``effect`` on top of the accepted ``others``:
     the candidate model, what it is tested against (fitted) and its cross-validated gain.  The
     others' grid parameters were chosen without the effect, which may have pulled them (a
     resonance's frequency absorbing a drift): they are chosen again with it, then its own given
@@ -961,10 +976,10 @@ def _candidate(m: LinearModel, effect: str, others: list[str], cv: float, st: _S
     null = _tested_against(m, effect, st)
     if others:
         m = _rechoose(m, others + [effect], st, cfg)
-        cv = _cv(m, st.split, cfg)
         null = _rechoose(_tested_against(m, effect, st), others, st, cfg)
     null = _fit(null, st.split)
-    return m, null, 1.0 - cv / _cv(null, st.split, cfg)
+    by_travel = _by_travel(m, null)
+    return m, null, 1.0 - _cv(m, st.split, cfg, by_travel) / _cv(null, st.split, cfg, by_travel)
 
 
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
@@ -1047,10 +1062,10 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
                 continue
             prog.update(note=f"round {rnd}: {name} for {out}")
             se = creep if eff.creeping else st
-            m, cv, _ = _best_variant(eff, base, se, cfg, r_est)
+            m, _, _ = _best_variant(eff, base, se, cfg, r_est)
             if m is None:
                 continue
-            m, null, gain_cv = _candidate(m, name, list(base.effects), cv, se, cfg)
+            m, null, gain_cv = _candidate(m, name, list(base.effects), se, cfg)
             trials.append((out, eff, m, null, gain_cv))
     level = cfg.level(rnd, len(trials))
     best: tuple[float, Step, LinearModel, str] | None = None
@@ -1058,7 +1073,8 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
         se = creep if eff.creeping else st
         step, _, h_cur = _test_candidate(se, cfg, rnd, eff, m, null, gain_cv, level, far, fnd)
         step.evidence["replaces"] = out
-        if not _cv(m, se.split, cfg) < _cv(se.model, se.split, cfg):
+        by_travel = _by_travel(m, se.model)
+        if not _cv(m, se.split, cfg, by_travel) < _cv(se.model, se.split, cfg, by_travel):
             step.reason = "; ".join(filter(None, [step.reason, f"no lower cross-validated error than the model with {out}"]))
         step.reason = step.reason and f"in place of {out}: {step.reason}"
         st.steps.append(step)
