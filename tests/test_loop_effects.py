@@ -153,7 +153,7 @@ def test_heating_is_refused_when_a_memory_shorter_than_a_thermal_one_fits_best()
     split, chunk = stage_prepare(AxisData(d.t, d.position, d.force + 2.0 * rig.fc * qd * np.abs(qd) / v**2, source="drag"), None, cfg)
     st = stage_baseline(split, chunk, cfg)
     _, r_est = _residual_rows(st, cfg)
-    m, _, why = _best_variant(CATALOGUE["heating"], st.model, st, cfg, r_est)
+    m, why = _best_variant(CATALOGUE["heating"], st.model, st, cfg, r_est)
     assert m is None and "shorter than a thermal one" in why
 
     res = run_loop(simulate_rig(Rig(effect="heating", seed=1, fs=1000.0, duration=24.0)), None, LoopConfig(progress=False, effects=("heating",)))

@@ -197,7 +197,7 @@ def _pair_state(force_extra, seed: int = 3):
     and every candidate's best variant (as a round of the loop computes them)."""
     from gmsfric._progress import Progress
     from gmsfric.loop.effects import CATALOGUE, dip_resolution
-    from gmsfric.loop.select import _best_variant, _cv, _residual_rows, stage_baseline, stage_prepare
+    from gmsfric.loop.select import _best_variant, _by_travel, _cv, _residual_rows, stage_baseline, stage_prepare
 
     d = simulate_rig(Rig(seed=seed, fs=1000.0, duration=16.0))
     qd = np.gradient(d.position, d.t)
@@ -206,13 +206,13 @@ def _pair_state(force_extra, seed: int = 3):
     split, chunk = stage_prepare(data, None, cfg)
     st = stage_baseline(split, chunk, cfg)
     fnd, r_est = _residual_rows(st, cfg)
-    cv_cur = _cv(st.model, split, cfg)
 
     def cands(*names: str):
         out = []
         for n in names:
-            m, cv, _ = _best_variant(CATALOGUE[n], st.model, st, cfg, r_est)
-            out.append((1.0 - cv / cv_cur, CATALOGUE[n], m))
+            m, _ = _best_variant(CATALOGUE[n], st.model, st, cfg, r_est)
+            by_travel = _by_travel(m, st.model)
+            out.append((1.0 - _cv(m, split, cfg, by_travel) / _cv(st.model, split, cfg, by_travel), CATALOGUE[n], m))
         return out
 
     far = split.val_test & (np.abs(split.val.rows["qd"]) >= dip_resolution(split.est))

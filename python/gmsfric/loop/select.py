@@ -349,10 +349,11 @@ def _cv_sse(X: Array, y: Array, folds: int, q: Array | None = None) -> float:
     """Blocked K-fold cross-validated SSE, from per-fold normal equations (columns scaled).
 
     With the rows' positions ``q``, a fold is scored only on its rows within the travel the other
-    folds cover (:data:`CV_TRAVEL_CELLS` cells of it): a run whose motion changes over time (a sweep's wide first cycles) leaves a fold
-    with travel the others never saw, where a position basis fitted without it can only guess, and
-    the choice between bases would reward the one that guesses best, not the one that fits.  When
-    that leaves fewer than half the rows (a run that crosses its travel once), every row is scored."""
+    folds cover (:data:`CV_TRAVEL_CELLS` cells of it): a run whose motion changes over time (a
+    sweep's wide first cycles) leaves a fold with travel the others never saw, where a position
+    basis fitted without it can only guess, and the choice between bases would reward the one
+    that guesses best, not the one that fits.  When that leaves fewer than half the rows (a run
+    that crosses its travel once), every row is scored."""
     n = y.size
     scale = np.sqrt((X**2).sum(axis=0))
     scale[scale == 0] = 1.0
@@ -755,9 +756,9 @@ def _residual_rows(st: _State, cfg: LoopConfig) -> tuple[dict[str, Finding], Arr
     return fnd, np.where(rows, r, np.nan)
 
 
-def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, r_est: Array, prog: Progress | None = None) -> tuple[LinearModel | None, float, str | None]:
+def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, r_est: Array, prog: Progress | None = None) -> tuple[LinearModel | None, str | None]:
     """The effect's variant with the smallest cross-validated error on the estimation rows (only
-    physically valid fits), its CV SSE, and why the last invalid one was refused.  An effect's
+    physically valid fits), and why the last invalid one was refused.  An effect's
     probe variants (:attr:`Effect.probe`) are cross-validated too, and none is returned when one
     of them is the best; a contested variant (:attr:`Effect.contested`) counts as valid when its
     error is at most :data:`CONTESTED_MARGIN` times the best probe's."""
@@ -789,12 +790,12 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
     if contested is not None and best_invalid is not None and contested[0] <= CONTESTED_MARGIN * best_invalid[0] and (best is None or contested[0] < best[0]):
         best = contested
     if best_invalid is not None and (best is None or best_invalid[0] < best[0]):
-        return None, float("nan"), f"{best_invalid[1]}; that fits the estimation rows best"
+        return None, f"{best_invalid[1]}; that fits the estimation rows best"
     if best is not None and eff.refine is not None:
         best, beyond = _refine_hyper(eff, best, st, cfg)
         if beyond is not None:
-            return None, float("nan"), f"{beyond}; the refined fit goes there"
-    return (best[1], best[0], why) if best is not None else (None, float("nan"), why)
+            return None, f"{beyond}; the refined fit goes there"
+    return (best[1], why) if best is not None else (None, why)
 
 
 def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg: LoopConfig) -> tuple[tuple[float, LinearModel], str | None]:
@@ -927,7 +928,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
             for eff in applicable:
                 prog.update(note=f"round {rnd}: {eff.name}")
                 se = creep if eff.creeping else st
-                m, _, why = _best_variant(eff, se.model, se, cfg, r_est, prog)
+                m, why = _best_variant(eff, se.model, se, cfg, r_est, prog)
                 if m is not None:
                     m, nulls[eff.name], gain_cv = _candidate(m, eff.name, list(st.model.effects), se, cfg)
                     cands.append((gain_cv, eff, m))
@@ -1062,7 +1063,7 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
                 continue
             prog.update(note=f"round {rnd}: {name} for {out}")
             se = creep if eff.creeping else st
-            m, _, _ = _best_variant(eff, base, se, cfg, r_est)
+            m, _ = _best_variant(eff, base, se, cfg, r_est)
             if m is None:
                 continue
             m, null, gain_cv = _candidate(m, name, list(base.effects), se, cfg)
