@@ -120,6 +120,48 @@ def test_heldout_test_false_rejections_stay_at_their_level_when_the_models_diffe
     assert rejected / reps < 0.08
 
 
+def test_heldout_test_of_a_warm_up_counts_the_chunks_where_it_acts():
+    """A warm-up fitted well, dying out over the first third of the run; after it, the refitted
+    baseline differs from the null's by amounts the run's own structure makes help in some chunks
+    and hurt in others.  Over every chunk where the two models differ those chunks dilute the
+    gain; over the chunks where the warm-up's fitted force is at least its mean they do not, and
+    the test of an effect acting over time (both ways, the smaller p doubled) sees it."""
+    n, chunk = 1500, 60
+    k = np.arange(n)
+    sgn = np.sign(np.sin(2 * np.pi * k / 150))
+    warm = 4.0 * np.exp(-k / 500) * sgn
+    plain = acting = 0
+    for seed in range(12):
+        rng = np.random.default_rng(seed)
+        e = _coloured(rng, n)
+        own = 2.0 * sgn * np.repeat(rng.uniform(-1, 1, n // chunk), chunk)
+        r0, r1 = e + warm, e + 0.1 * warm + own * (k >= 600)
+        plain += paired_chunk_test(r0, r1, chunk)[1] <= 0.01
+        t, p, m = paired_chunk_test(r0, r1, chunk, 0.9 * warm)
+        assert m == 8
+        acting += p <= 0.01
+        # a warm-up fitted where there is none is worse where it acts
+        assert paired_chunk_test(e, e + 0.5 * warm, chunk, 0.5 * warm)[0] < 0
+    assert plain <= 1 and acting >= 6
+
+
+def test_heldout_test_of_an_effect_acting_over_time_keeps_its_level():
+    """Two equally good models that differ only while a warm-up acts (by independent coloured
+    noise), tested on the chunks where the warm-up is at least its mean: the one-sided 5 % level
+    holds within sampling error."""
+    rng = np.random.default_rng(8)
+    n, chunk, reps = 1500, 60, 1000
+    warm = 3.0 * np.exp(-np.arange(n) / 250)
+    acts = warm > 0.3
+    rejected = 0
+    for _ in range(reps):
+        e = _coloured(rng, n)
+        r0 = e + 0.5 * _coloured(rng, n, 0.95) * acts
+        r1 = e + 0.5 * _coloured(rng, n, 0.95) * acts
+        rejected += paired_chunk_test(r0, r1, chunk, warm)[1] <= 0.05
+    assert rejected / reps < 0.075
+
+
 def _dwell_rig_data(seed: int = 5) -> tuple[AxisData, float]:
     """A clean rig whose reference dwells (standstill with a holding force: the drive's integrator
     and the friction share it)."""

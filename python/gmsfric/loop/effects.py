@@ -209,6 +209,14 @@ class Effect:
         on its own.  The effect's tests (held-out, cross-validated, BIC; forward, in pairs and
         backward) compare against the model with this part kept rather than with the whole term
         removed, so the effect must explain what its null does not.
+    acts_over_time : bool
+        The effect's force changes over the run (a warm-up dies out, a drift grows): its held-out
+        tests (forward, in pairs, in exchanges and backward) count the chunks where its own fitted
+        force is at least its mean chunk's (``select.ACTING_FRACTION``), rather than every chunk
+        where the two models' predictions differ.  With the effect, the baseline is refitted and
+        differs from the null's everywhere, and the chunks where a warm-up has died out would weigh
+        as much as those where it acts.  The chunks are chosen from the fitted force, not the
+        measured one, so a useless effect still gains nothing on them on average.
     """
 
     name: str
@@ -225,6 +233,7 @@ class Effect:
     consistency_only: bool = False
     refit_clear_of_reversals: bool = False
     creeping: bool = False
+    acts_over_time: bool = False
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
@@ -667,7 +676,7 @@ CATALOGUE: dict[str, Effect] = {
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True, refit_clear_of_reversals=True),
-        Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants),
+        Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants, acts_over_time=True),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok,
                probe=lambda p, s: not HEATING_MIN_TAU_S <= p["heating_tau_s"]["value"] < s.duration, null=heating_trend),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Callable, Collection, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -339,6 +339,21 @@ class LinearModel:
         if self.theta is None:
             raise IdentificationError("model is not fitted")
         return self.X(sig) @ self.theta
+
+    def term_force(self, sig: Signals, names: Collection[str]) -> Array:
+        """The fitted force of the terms whose names are in ``names``, on the decimated rows of
+        ``sig`` (zero when the model has none of them)."""
+        if self.theta is None:
+            raise IdentificationError("model is not fitted")
+        steps = self.delay / sig.dt
+        force = np.zeros(sig.n_rows)
+        k = 0
+        for t in self.terms:
+            n = len(t.param_names)
+            if t.name in names:
+                force += term_rows(t, sig, steps) @ self.theta[k:k + n]
+            k += n
+        return force
 
     def params(self) -> dict[str, dict[str, float]]:
         """``{name: {"value", "std"}}`` including hyper-parameters (std NaN: grid-selected)."""

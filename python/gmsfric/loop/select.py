@@ -84,6 +84,13 @@ ALIGNMENT_GRID = np.round(np.linspace(0.0, 1.0, 11), 3)
 #: differ by under 1 % of the mean, its acceleration chunks by 40-800 %.
 INFORMATIVE_FRACTION = 0.05
 
+#: An effect that acts over time (:attr:`Effect.acts_over_time`) is tested on the held-out chunks
+#: where its own fitted force is at least this fraction of its mean chunk's.  A warm-up planted on
+#: the real EMPS runs (6 N dying out over 10 s of 25 s) gains 14 % on held-out data, d = 0.14 to
+#: 0.66 in the seven chunks where it acts and -0.18 to +0.22 in the twelve after it, where the
+#: refitted baseline differs from the null's by the drift's mean: t = 1.5 over all nineteen.
+ACTING_FRACTION = 1.0
+
 #: The paired chunk test uses at least this many chunks.
 MIN_TESTED_CHUNKS = 6
 
@@ -402,7 +409,7 @@ class HeldOut:
     error_after: float
 
 
-def paired_chunk_test(r0: Array, r1: Array, chunk: int) -> tuple[float, float, int]:
+def paired_chunk_test(r0: Array, r1: Array, chunk: int, acting: Array | None = None) -> tuple[float, float, int]:
     """One-sided test that ``r1`` is smaller than ``r0``: per contiguous chunk the normalised
     decrease of the squared error ``d = (SSE0 - SSE1) / (SSE0 + SSE1)``, its mean over a
     Newey-West standard error (the chunks' own autocorrelation counted), p-value from Student's
@@ -417,15 +424,31 @@ def paired_chunk_test(r0: Array, r1: Array, chunk: int) -> tuple[float, float, i
     they predict the same force, ``d`` is noise about zero and would only dilute an effect that
     acts in a few places (a delay while the force changes, a contact at reversals).  The choice
     depends on ``r0 - r1``, the difference of the two predictions, not on the measured force, so
-    a useless effect still has a mean ``d`` of zero or below.  Returns ``(t, p, m)`` with ``m``
-    the chunks tested."""
+    a useless effect still has a mean ``d`` of zero or below.
+
+    With ``acting`` (the fitted force of an effect that acts over time,
+    :attr:`Effect.acts_over_time`) the test is also made on the chunks where that force is at
+    least :data:`ACTING_FRACTION` of its mean chunk's, and the smaller of the two p-values,
+    doubled (Bonferroni), is returned with its ``t`` and ``m``: a warm-up shows where it acts,
+    while a drift spread over the run, or the refitted baseline, can hold the evidence elsewhere.
+    Returns ``(t, p, m)`` with ``m`` the chunks tested."""
     m = max(2, r0.size // chunk)
     c = r0.size // m
     a = (r0[: m * c] ** 2).reshape(m, c).sum(axis=1)
     b = (r1[: m * c] ** 2).reshape(m, c).sum(axis=1)
-    keep = informative_chunks(((r0 - r1)[: m * c] ** 2).reshape(m, c).sum(axis=1))
-    a, b, m = a[keep], b[keep], int(keep.sum())
     d = (a - b) / np.maximum(a + b, 1e-300)
+    plain = _mean_test(d[informative_chunks(((r0 - r1)[: m * c] ** 2).reshape(m, c).sum(axis=1))])
+    if acting is None:
+        return plain
+    where = _mean_test(d[informative_chunks((acting[: m * c] ** 2).reshape(m, c).sum(axis=1), ACTING_FRACTION)])
+    t, p, k = min(plain, where, key=lambda r: r[1])
+    return t, min(1.0, 2.0 * p), k
+
+
+def _mean_test(d: Array) -> tuple[float, float, int]:
+    """One-sided Student test that the mean of the chunks' ``d`` is above zero, with a Newey-West
+    standard error: ``(t, p, m)``."""
+    m = d.size
     mean = float(d.mean())
     dc = d - mean
     g0 = float(dc @ dc) / m
@@ -440,28 +463,31 @@ def paired_chunk_test(r0: Array, r1: Array, chunk: int) -> tuple[float, float, i
     return float(t), p, m
 
 
-def informative_chunks(disagreement: Array) -> Array:
+def informative_chunks(disagreement: Array, fraction: float = INFORMATIVE_FRACTION) -> Array:
     """The chunks (mask) whose summed squared difference of the two models' predictions is at
-    least :data:`INFORMATIVE_FRACTION` of the mean chunk's; at least :data:`MIN_TESTED_CHUNKS`
+    least ``fraction`` of the mean chunk's; at least :data:`MIN_TESTED_CHUNKS`
     (those that disagree most) when fewer do, all of them when the models agree everywhere."""
     m = disagreement.size
     mean = float(disagreement.mean())
     if m <= MIN_TESTED_CHUNKS or not mean > 0:
         return np.ones(m, dtype=bool)
-    keep = disagreement >= INFORMATIVE_FRACTION * mean
+    keep = disagreement >= fraction * mean
     if keep.sum() < MIN_TESTED_CHUNKS:
         keep = np.zeros(m, dtype=bool)
         keep[np.argsort(disagreement)[-MIN_TESTED_CHUNKS:]] = True
     return keep
 
 
-def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, rows: Array | None = None) -> HeldOut:
-    """Compare two fitted models on the moving held-out rows (or on ``rows`` of them)."""
+def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, rows: Array | None = None,
+            effect: str | None = None) -> HeldOut:
+    """Compare two fitted models on the moving held-out rows (or on ``rows`` of them); ``effect``:
+    the effect ``after`` adds (its chunks tested where it acts when it acts over time)."""
     rows = split.val_test if rows is None else rows
     y = split.val.y[rows]
     r0 = y - before.predict(split.val)[rows]
     r1 = y - after.predict(split.val)[rows]
-    t, p, m = paired_chunk_test(r0, r1, chunk)
+    acting = after.term_force(split.val, (effect,))[rows] if effect is not None and CATALOGUE[effect].acts_over_time else None
+    t, p, m = paired_chunk_test(r0, r1, chunk, acting)
     e0, e1 = relative_error(y, y - r0), relative_error(y, y - r1)
     return HeldOut(t, p, 1.0 - e1 / e0 if e0 > 0 else 0.0, m, e0, e1)
 
@@ -586,13 +612,7 @@ def baseline_physics(m: LinearModel, split: Split) -> dict[str, float]:
     names = [t.name for t in m.terms]
     if "coulomb" in names and "viscous" in names:
         steps = m.delay / S.dt
-        fric = np.zeros(S.n_rows)
-        k = 0
-        for t in m.terms:
-            n = len(t.param_names)
-            if t.name in FRICTION_TERMS:
-                fric += term_rows(t, S, steps) @ m.theta[k : k + n]
-            k += n
+        fric = m.term_force(S, FRICTION_TERMS)
         B = np.column_stack([term_rows(BASE_TERMS["coulomb"], S, steps), term_rows(BASE_TERMS["viscous"], S, steps)])[rows]
         c = np.linalg.lstsq(B, fric[rows], rcond=None)[0]
         out["Fc"] = float(c[0])
@@ -893,7 +913,7 @@ def _backward(st: _State, cfg: LoopConfig, rnd: int, newest: str) -> None:
             if st.alignment and name == "input_delay":
                 reduced = _align(reduced, split, cfg, st.alignment, rnd, st.chunk)
             null = _fit(_reduced(st.model, name, dt), split) if CATALOGUE[name].null is not None else reduced
-            h = heldout(split, null, st.model, st.chunk)
+            h = heldout(split, null, st.model, st.chunk, effect=name)
             if h.p <= cfg.alpha and h.gain >= cfg.min_gain:
                 continue
             for s in st.steps:
@@ -992,10 +1012,10 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     n_est = int(split.est_fit.sum())
     _fit(m, split)
     e_est, e_val = split.errors(m)
-    h = heldout(split, null, m, st.chunk)
+    h = heldout(split, null, m, st.chunk, effect=eff.name)
     # the whole must also beat the current model (the others chosen again without
     # the effect, or its null part, may predict the held-out run worse than it)
-    h_cur = heldout(split, st.model, m, st.chunk) if st.model.effects or eff.null is not None else h
+    h_cur = heldout(split, st.model, m, st.chunk, effect=eff.name) if st.model.effects or eff.null is not None else h
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
     h_far = heldout_clear(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
     dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
@@ -1164,7 +1184,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
         passed = True
         for eff, other in ((ea, eb), (eb, ea)):
             reduced = _fit(_tested_against(both, eff.name, ps), split)
-            hm = heldout(split, reduced, both, st.chunk)
+            hm = heldout(split, reduced, both, st.chunk, effect=eff.name)
             ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain >= cfg.min_gain
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
             far_level = eff.level_clear_of_reversals(both, level, cfg.alpha)
