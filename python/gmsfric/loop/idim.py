@@ -345,6 +345,8 @@ class LinearModel:
         ``sig`` (zero when the model has none of them)."""
         if self.theta is None:
             raise IdentificationError("model is not fitted")
+        if isinstance(names, str):  # one name, not its characters
+            names = (names,)
         steps = self.delay / sig.dt
         force = np.zeros(sig.n_rows)
         k = 0

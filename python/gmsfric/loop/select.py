@@ -84,8 +84,8 @@ ALIGNMENT_GRID = np.round(np.linspace(0.0, 1.0, 11), 3)
 #: differ by under 1 % of the mean, its acceleration chunks by 40-800 %.
 INFORMATIVE_FRACTION = 0.05
 
-#: An effect that acts over time (:attr:`Effect.acts_over_time`) is tested on the held-out chunks
-#: where its own fitted force is at least this fraction of its mean chunk's.  A warm-up planted on
+#: An effect that acts over time (:attr:`Effect.acts_over_time`) is also tested on the held-out
+#: chunks where its own fitted force is at least this fraction of its mean chunk's.  A warm-up planted on
 #: the real EMPS runs (6 N dying out over 10 s of 25 s) gains 15 % on held-out data, d = 0.14 to
 #: 0.66 in the seven chunks where it acts and -0.18 to +0.22 in the twelve after it, where the
 #: refitted baseline differs from the null's by the drift's mean: t = 1.5 over all nineteen.
