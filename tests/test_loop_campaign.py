@@ -489,26 +489,21 @@ def test_a_slow_log_gets_a_filter_cut_off_chosen_on_its_estimation_rows(monkeypa
     assert split.preprocessing["cutoff_hz"] == 100.0 and split.preprocessing["chosen_by"].startswith("the recipe")
 
 
-def test_a_resonance_needs_only_a_consistent_gain_away_from_reversals(monkeypatch):
+def test_a_resonance_is_confirmed_away_from_reversals():
     """A transmission resonance on a trapezoid run (the campaign's seed 53): it gains 60 % on the
-    held-out rows (t = 7.2), and on the rows clear of reversals and stops, where a trapezoid move
-    excites it only in the few accelerations away from a stop, at t = 2.7, p = 0.013.  That
-    confirms a whole-motion effect already found at the family-wise level; asking the rows clear
-    of reversals for the family-wise level again (and t >= 3) refuses the resonance."""
-    import dataclasses
-
+    held-out rows (t = 7.2).  On the rows clear of reversals and stops a trapezoid move excites it
+    only in the few accelerations away from a stop; cut into chunks by the rule of all rows (6 to
+    10 chunks there) it reached only t = 2.7, p = 0.013, and cut by that rule applied to those
+    rows it is confirmed with t = 3.3.  A resonance only has to agree there at the nominal level
+    (``Effect.consistency_only``), as a check of a gain already found on all rows."""
     from gmsfric.loop import LoopConfig, run_loop
-    from gmsfric.loop import effects
 
     runs = _campaign_runs(53, "single-140-compliance")
     cfg = LoopConfig(progress=False, effects=("compliance",))
     res = run_loop(*runs, cfg)
     assert res.effects == ["compliance"]
     step = next(s for s in res.steps if s.accepted)
-    assert step.evidence["t_heldout"] >= cfg.t_threshold > step.evidence["t_heldout_away_from_reversals"] > 0
-    strict = dataclasses.replace(effects.CATALOGUE["compliance"], consistency_only=False)
-    monkeypatch.setitem(effects.CATALOGUE, "compliance", strict)
-    assert run_loop(*runs, cfg).effects == []
+    assert step.evidence["t_heldout"] >= cfg.t_threshold and step.evidence["t_heldout_away_from_reversals"] > 0
 
 
 def test_a_delay_must_gain_clear_of_stops_when_both_models_are_fitted_there(monkeypatch):
@@ -568,3 +563,31 @@ def test_a_warm_up_is_tested_on_the_chunks_where_it_acts(monkeypatch):
     eff = CATALOGUE["friction_drift"]
     monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, acts_over_time=False))
     assert "friction_drift" not in run_loop(*runs, cfg).effects
+
+
+@pytest.mark.parametrize("case_id, missed_by", [("single-097-input_delay", "chunks"), ("single-107-input_delay", "all_rows_level")])
+def test_a_delay_is_judged_on_the_rows_clear_of_reversals(monkeypatch, case_id, missed_by):
+    """Two delays of the campaign's seed 59 that gain 32 % and 25 % on held-out data.
+    ``single-097`` (a run that reverses often): clear of reversals and stops the delay gains 28 %
+    at t = 3.0 over the 6 chunks that the cut of all rows leaves there (p = 0.015 on 5 degrees of
+    freedom); cut by the same rule applied to those rows, 13 chunks, t = 4.5.  ``single-107``:
+    t = 7.1 clear of reversals, but 2.8 on all moving rows, where the filters' response to the
+    stops dilutes it; asking all rows for the family-wise level as well misses it."""
+    import dataclasses
+
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop import effects, select
+
+    runs = _campaign_runs(59, case_id)
+    cfg = LoopConfig(progress=False)
+    res = run_loop(*runs, cfg)
+    assert "input_delay" in res.effects
+    step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
+    assert step.evidence["t_heldout_away_from_reversals"] >= cfg.t_threshold
+    if missed_by == "chunks":
+        cut_like_all_rows = select.chunk_rows
+        monkeypatch.setattr(select, "chunk_rows", lambda split, n: cut_like_all_rows(split, int(split.val_test.sum())))
+    else:
+        assert step.evidence["t_heldout"] < cfg.t_threshold
+        monkeypatch.setattr(effects.Effect, "judged_clear_of_reversals", property(lambda self: False))
+    assert "input_delay" not in run_loop(*runs, cfg).effects

@@ -70,6 +70,29 @@ def test_heldout_test_false_rejections_stay_at_their_level_on_coloured_residuals
     assert rejected / reps < 0.08
 
 
+def test_rows_clear_of_reversals_are_cut_into_at_least_twenty_chunks_and_keep_the_level():
+    """The rows clear of reversals and stops are a fraction of the held-out rows: cut by the same
+    rule applied to their number they still give 20 chunks (of at least 10 rows), and on chunks
+    about twice the residual's correlation time the one-sided 5 % level holds within sampling
+    error."""
+    from gmsfric.loop.select import chunk_rows
+
+    split = make_split(simulate_rig(Rig(seed=3, fs=1000.0, duration=8.0)), None, LoopConfig(progress=False))
+    for n in (200, 400, 931, 1500, 6000):
+        chunk = chunk_rows(split, n)
+        assert chunk >= 10 and 20 <= n // chunk <= 60
+    rng = np.random.default_rng(4)
+    n, reps = 400, 1000
+    chunk = chunk_rows(split, n)
+    rejected = 0
+    for _ in range(reps):
+        e = _coloured(rng, n)
+        r0 = e + 0.3 * _coloured(rng, n, 0.9)
+        r1 = e + 0.3 * _coloured(rng, n, 0.9)
+        rejected += paired_chunk_test(r0, r1, chunk)[1] <= 0.05
+    assert rejected / reps < 0.085
+
+
 def test_heldout_test_sees_a_real_improvement():
     rng = np.random.default_rng(2)
     e = _coloured(rng, 1500)
