@@ -59,15 +59,19 @@ def _coloured(rng: np.random.Generator, n: int, pole: float = 0.9) -> np.ndarray
 def test_heldout_test_false_rejections_stay_at_their_level_on_coloured_residuals():
     """Two models that are equally good (their residuals differ by independent coloured noise):
     the one-sided p-value rejects at 5 % in about 5 % of the runs, not more."""
-    rng = np.random.default_rng(1)
-    n, chunk, reps = 1500, 60, 400
+    assert _rejection_rate(np.random.default_rng(1), n=1500, chunk=60, pole=0.95, reps=400) < 0.08
+
+
+def _rejection_rate(rng: np.random.Generator, n: int, chunk: int, pole: float, reps: int) -> float:
+    """How often two equally good models (residuals differing by independent coloured noise of
+    ``pole``) are told apart at 5 %."""
     rejected = 0
     for _ in range(reps):
         e = _coloured(rng, n)
-        r0 = e + 0.3 * _coloured(rng, n, 0.95)
-        r1 = e + 0.3 * _coloured(rng, n, 0.95)
+        r0 = e + 0.3 * _coloured(rng, n, pole)
+        r1 = e + 0.3 * _coloured(rng, n, pole)
         rejected += paired_chunk_test(r0, r1, chunk)[1] <= 0.05
-    assert rejected / reps < 0.08
+    return rejected / reps
 
 
 def test_rows_clear_of_reversals_are_cut_into_at_least_twenty_chunks_and_keep_the_level():
@@ -81,16 +85,7 @@ def test_rows_clear_of_reversals_are_cut_into_at_least_twenty_chunks_and_keep_th
     for n in (200, 400, 931, 1500, 6000):
         chunk = chunk_rows(split, n)
         assert chunk >= 10 and 20 <= n // chunk <= 60
-    rng = np.random.default_rng(4)
-    n, reps = 400, 1000
-    chunk = chunk_rows(split, n)
-    rejected = 0
-    for _ in range(reps):
-        e = _coloured(rng, n)
-        r0 = e + 0.3 * _coloured(rng, n, 0.9)
-        r1 = e + 0.3 * _coloured(rng, n, 0.9)
-        rejected += paired_chunk_test(r0, r1, chunk)[1] <= 0.05
-    assert rejected / reps < 0.085
+    assert _rejection_rate(np.random.default_rng(4), n=400, chunk=chunk_rows(split, 400), pole=0.9, reps=1000) < 0.085
 
 
 def test_heldout_test_sees_a_real_improvement():

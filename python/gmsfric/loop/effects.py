@@ -262,6 +262,12 @@ class Effect:
         reversals)."""
         return self.whole_motion and not self.consistency_only
 
+    def level_on_all_rows(self, level: float, alpha: float) -> float:
+        """Level at which the effect's gain on all moving held-out rows must hold: the family-wise
+        ``level``, or the nominal ``alpha`` (no floor on t) when it is
+        :attr:`judged_clear_of_reversals`."""
+        return alpha if self.judged_clear_of_reversals else level
+
     def applicable(self, model: LinearModel) -> bool:
         return self.name not in model.effects and not (self.name == "offset" and any(t.name == "offset" for t in model.terms))
 

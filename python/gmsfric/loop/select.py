@@ -1043,7 +1043,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
         reasons.append("no cross-validated gain on estimation data")
     if h.gain < cfg.min_gain:
         reasons.append(f"held-out error gain {100 * h.gain:.2f} % < {100 * cfg.min_gain:.2f} %")
-    all_level = cfg.alpha if eff.judged_clear_of_reversals else level
+    all_level = eff.level_on_all_rows(level, cfg.alpha)
     if h.p > all_level or (h.t < cfg.t_threshold and not eff.judged_clear_of_reversals):
         reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {all_level:.2g})" if h.p > all_level
                        else f"held-out t = {h.t:.2f} < {cfg.t_threshold}")
@@ -1193,8 +1193,8 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
         for eff, other in ((ea, eb), (eb, ea)):
             reduced = _fit(_tested_against(both, eff.name, ps), split)
             hm = heldout(split, reduced, both, st.chunk, effect=eff.name)
-            judged_clear = eff.judged_clear_of_reversals
-            ok = hm.p <= (cfg.alpha if judged_clear else level) and (judged_clear or hm.t >= cfg.t_threshold) and hm.gain >= cfg.min_gain
+            ok = (hm.p <= eff.level_on_all_rows(level, cfg.alpha) and (eff.judged_clear_of_reversals or hm.t >= cfg.t_threshold)
+                  and hm.gain >= cfg.min_gain)
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
             far_level = eff.level_clear_of_reversals(both, level, cfg.alpha)
             if far_level is not None:
