@@ -492,9 +492,9 @@ def test_a_slow_log_gets_a_filter_cut_off_chosen_on_its_estimation_rows(monkeypa
 def test_a_resonance_is_confirmed_away_from_reversals():
     """A transmission resonance on a trapezoid run (the campaign's seed 53): it gains 60 % on the
     held-out rows (t = 7.2).  On the rows clear of reversals and stops a trapezoid move excites it
-    only in the few accelerations away from a stop; cut into chunks by the rule of all rows (6 to
-    10 chunks there) it reached only t = 2.7, p = 0.013, and cut by that rule applied to those
-    rows it is confirmed with t = 3.3.  A resonance only has to agree there at the nominal level
+    only in the few accelerations away from a stop; with the chunk length of all rows it reached
+    only t = 2.7, p = 0.013 there, and cut by their rule applied to those rows it is confirmed
+    with t = 3.3.  A resonance only has to agree there at the nominal level
     (``Effect.consistency_only``), as a check of a gain already found on all rows."""
     from gmsfric.loop import LoopConfig, run_loop
 
@@ -573,8 +573,6 @@ def test_a_delay_is_judged_on_the_rows_clear_of_reversals(monkeypatch, case_id, 
     freedom); cut by the same rule applied to those rows, 13 chunks, t = 4.5.  ``single-107``:
     t = 7.1 clear of reversals, but 2.8 on all moving rows, where the filters' response to the
     stops dilutes it; asking all rows for the family-wise level as well misses it."""
-    import dataclasses
-
     from gmsfric.loop import LoopConfig, run_loop
     from gmsfric.loop import effects, select
 

@@ -257,8 +257,8 @@ class Effect:
         reversals and stops (a whole-motion effect that is not :attr:`consistency_only`: a delay).
         All moving rows then only have to agree, at the nominal ``alpha`` with the minimum gain:
         next to reversals and stops the filters' response to the switch of friction can mimic or
-        mask the effect, and asking both sets of rows for the family-wise level missed delays
-        that gain 25 to 45 % on held-out data (held-out t = 2.8 on all rows and 7.1 clear of
+        mask the effect, and asking both sets of rows for the family-wise level missed a delay
+        that gains 25 % on held-out data (held-out t = 2.8 on all rows and 7.1 clear of
         reversals)."""
         return self.whole_motion and not self.consistency_only
 
