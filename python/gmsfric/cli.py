@@ -3,7 +3,8 @@
 Each subcommand lives in its own module exposing ``register(subparsers)``: the module adds its
 parser, declares its input files and outputs with :func:`declare_files` and sets ``func``, called
 as ``func(args, run)`` with a :class:`Run` and returning an exit code.  Adding a command = adding
-its module name to ``COMMAND_MODULES``.
+its name and module to ``COMMANDS``.  Only the module of the command being run is imported (the
+command modules import scipy, which takes seconds); help and unknown commands import them all.
 
 The runner, not the commands, owns
 
@@ -43,12 +44,13 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from .results import Result
 
-COMMAND_MODULES = [
-    "gmsfric.identify.cli",
-    "gmsfric.demo",
-    "gmsfric.loop.cli",
-    "gmsfric.glitch.cli",
-]
+COMMANDS = {
+    "identify": "gmsfric.identify.cli",
+    "paper": "gmsfric.identify.cli",
+    "demo": "gmsfric.demo",
+    "loop": "gmsfric.loop.cli",
+    "glitch": "gmsfric.glitch.cli",
+}
 
 log = logging.getLogger("gmsfric")
 
@@ -186,13 +188,26 @@ def _add_common(p: argparse.ArgumentParser, default: Any) -> None:
     g.add_argument("--debug", action="store_true", default=default, help="show the Python traceback of an error")
 
 
-def build_parser() -> ArgumentParser:
-    """The ``gmsfric`` parser with every command of ``COMMAND_MODULES``."""
+def _command_modules(argv: Sequence[str]) -> list[str]:
+    """The modules to import for ``argv``: the one of its command, none for ``--version`` alone,
+    all of them to list the commands (help, no command, an unknown one)."""
+    # the options before a command are all flags, so its name is the first word without a dash
+    command = next((a for a in argv if not a.startswith("-")), None)
+    if command in COMMANDS:
+        return [COMMANDS[command]]
+    if command is None and "--version" in argv and not {"-h", "--help"} & set(argv):
+        return []
+    return list(dict.fromkeys(COMMANDS.values()))
+
+
+def build_parser(argv: Sequence[str] = ()) -> ArgumentParser:
+    """The ``gmsfric`` parser with the command named in ``argv``, or with every command of
+    ``COMMANDS`` when ``argv`` names none of them."""
     parser = ArgumentParser(prog="gmsfric", description="Friction identification and fast simulation of precision servo axes.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
     _add_common(parser, False)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=ArgumentParser)
-    for name in COMMAND_MODULES:
+    for name in _command_modules(list(argv)):
         importlib.import_module(name).register(sub)
     for p in _subparsers(parser):
         # the same options after the command; SUPPRESS keeps a value given before it
@@ -384,7 +399,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return code
 
     try:
-        parser = build_parser()
+        parser = build_parser(argv)
         args = parser.parse_args(argv)
         prog = getattr(args, "_prog", prog)
         debug = bool(args.debug)
