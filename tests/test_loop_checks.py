@@ -86,3 +86,22 @@ def test_a_column_in_another_unit_than_declared_is_named(t_scale, q_scale, param
     result, caught = _loop(T * t_scale, SWEEP * q_scale, f)
     assert [d for d in result.diagnostics if d["code"] == "units" and d["parameter"] == parameter]
     assert any(message in str(w.message) for w in caught)
+
+
+def test_a_held_out_run_beyond_the_estimation_travel_is_reported_as_extrapolation():
+    _, f = _axis(SWEEP, T)
+    wide = 3.0 * SWEEP
+    _, f_wide = _axis(wide, T, seed=1)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", FitWarning)
+        result = run_loop(AxisData(T, SWEEP, f, source="est"), AxisData(T, wide, f_wide, source="val"))
+    found = [d for d in result.diagnostics if d["code"] == "coverage"]
+    assert len(found) == 1 and found[0]["parameter"] == "position"
+    lo, hi = result.split.est.q_range
+    share = np.mean(np.abs(result.split.val.rows["q"][result.split.val.moving]) > hi)
+    assert f"{100 * share:.0f} % of the held-out run" in found[0]["message"]
+    assert any("outside the estimation run's travel" in str(w.message) for w in caught)
+    # the same travel held out: nothing to report
+    _, f_same = _axis(SWEEP, T, seed=2)
+    same = run_loop(AxisData(T, SWEEP, f, source="est"), AxisData(T, SWEEP, f_same, source="val"))
+    assert not [d for d in same.diagnostics if d["code"] == "coverage"]

@@ -3,9 +3,9 @@
 The loop can end with "no effect added" and a tidy table on a run that did not let it identify
 anything: a force column unrelated to the motion, a run in one direction only (Coulomb friction
 and an offset are then one number), a clipped drive, a time or position column in another unit
-than declared.  These checks put such findings in the result's ``diagnostics`` (``{"code",
-"parameter", "message"}`` in the JSON) and warn each with :class:`~gmsfric.errors.FitWarning`;
-the CLI prints them under the table.  They only report: the selection does not use them.
+than declared, a held-out run that leaves the estimation run's travel.  These checks put such
+findings in the result's ``diagnostics`` (``{"code", "parameter", "message"}`` in the JSON) and
+warn each with :class:`~gmsfric.errors.FitWarning`; the CLI prints them under the table.  They only report: the selection does not use them.
 
 :func:`check_closed_loop` judges the closed-loop replay (``--reference --kp --kv``): a replay
 whose force error is far beyond the inverse model's is a controller, gain or unit that does not
@@ -58,6 +58,11 @@ BASELINE_PARAMETERS = ("M", "Fv", "Fc", "offset")
 #: than declared (a 1 kHz log in ms read as s is sampled at 1 Hz).
 SAMPLE_RATE_RANGE = (20.0, 200e3)
 
+#: Share of the held-out run's moving rows outside the estimation run's travel above which the
+#: held-out figures are reported as extrapolation: position-dependent terms are identified on the
+#: estimation travel only and held at its ends beyond it.
+OUTSIDE_TRAVEL = 0.10
+
 #: Top speeds (99th percentile; m/s linear, rad/s rotary) beyond those of servo axes (linear
 #: motors reach a few m/s, motor shafts a few thousand rad/s): most likely a position in mm or
 #: deg read as m or rad.
@@ -82,6 +87,7 @@ def check_result(result: "LoopResult") -> Findings:
         unit = "rad/s" if result.rotary else "m/s"
         found.add("units", f"the axis moves at up to {speed:.4g} {unit}, beyond the {TOP_SPEED[kind]:g} {unit} of servo axes: "
                            "is the position column in the declared unit (--position-unit)?", "position")
+    _check_travel(found, result)
     error = result.split.errors_moving(result.final)[0]
     if error > POOR_FIT_PCT:
         found.add("poor_fit", f"the final model leaves {error:.0f} % of the force unexplained (relative rms error on the moving rows of the estimation run): "
@@ -108,6 +114,22 @@ def check_result(result: "LoopResult") -> Findings:
                                             "only a combination of them is determined",
                               f"{names[i]},{names[j]}")
     return found
+
+
+def _check_travel(found: Findings, result: "LoopResult") -> None:
+    """A held-out run that moves beyond the estimation run's travel tests the model where its
+    position terms were never fitted."""
+    split = result.split
+    if split.val is split.est:  # held-out blocks of the estimation run share its travel
+        return
+    lo, hi = split.est.q_range
+    q = split.val.rows["q"][split.val.moving]
+    share = float(np.mean((q < lo) | (q > hi))) if q.size else 0.0
+    if share > OUTSIDE_TRAVEL:
+        unit = "rad" if result.rotary else "m"
+        found.add("coverage", f"{100 * share:.0f} % of the held-out run's moving rows lie outside the estimation run's travel "
+                              f"({lo:.4g} to {hi:.4g} {unit}): position-dependent terms were fitted on that travel only, and the held-out "
+                              "figures there measure extrapolation; record an estimation run over the whole travel", "position")
 
 
 def check_closed_loop(result: "LoopResult", controller: "PID | Cascade | None" = None) -> Findings:
