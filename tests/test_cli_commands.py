@@ -38,7 +38,7 @@ def test_version_imports_no_command():
     assert code == 0 and text.strip() and loaded == set()
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["lop"], []])
+@pytest.mark.parametrize("argv", [["--help"], ["lop"], [], ["--", "loop"]])
 def test_help_and_unknown_commands_list_every_command(argv):
     code, loaded, text = _run(*argv)
     assert loaded == set(COMMANDS.values())

@@ -192,7 +192,9 @@ def _command_modules(argv: Sequence[str]) -> list[str]:
     """The modules to import for ``argv``: the one of its command, none for ``--version`` alone,
     all of them to list the commands (help, no command, an unknown one)."""
     # the options before a command are all flags, so its name is the first word without a dash
-    command = next((a for a in argv if not a.startswith("-")), None)
+    # (argparse refuses a command after "--")
+    before = argv[: argv.index("--")] if "--" in argv else argv
+    command = next((a for a in before if not a.startswith("-")), None)
     if command in COMMANDS:
         return [COMMANDS[command]]
     if command is None and "--version" in argv and not {"-h", "--help"} & set(argv):
