@@ -284,3 +284,16 @@ def test_the_python_entry_points_name_a_bad_argument(make, match):
 def test_plain_lists_are_accepted_as_columns():
     data = AxisData(list(_T), list(_Q), list(_F))
     assert data.position.dtype == np.float64 and data.dt == pytest.approx(1e-3)
+
+
+@pytest.mark.parametrize("dec", [2, 5, 10, 13])
+def test_the_loop_decimates_as_scipy_does(dec):
+    from scipy import signal
+
+    from gmsfric.loop.idim import zero_phase_decimate
+
+    x = np.random.default_rng(dec).standard_normal((40 * dec + 7, 3)).cumsum(axis=0)
+    expected = signal.decimate(x, dec, axis=0, zero_phase=True)
+    got = zero_phase_decimate(x, dec)
+    assert got.shape == expected.shape
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
