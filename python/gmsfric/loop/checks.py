@@ -5,7 +5,8 @@ anything: a force column unrelated to the motion, a run in one direction only (C
 and an offset are then one number), a clipped drive, a time or position column in another unit
 than declared, a held-out run that leaves the estimation run's travel.  These checks put such
 findings in the result's ``diagnostics`` (``{"code", "parameter", "message"}`` in the JSON) and
-warn each with :class:`~gmsfric.errors.FitWarning`; the CLI prints them under the table.  They only report: the selection does not use them.
+warn each with :class:`~gmsfric.errors.FitWarning`; the CLI prints them under the table.  They
+only report: the selection does not use them.
 
 :func:`check_closed_loop` judges the closed-loop replay (``--reference --kp --kv``): a replay
 whose force error is far beyond the inverse model's is a controller, gain or unit that does not
@@ -59,8 +60,8 @@ BASELINE_PARAMETERS = ("M", "Fv", "Fc", "offset")
 SAMPLE_RATE_RANGE = (20.0, 200e3)
 
 #: Share of the held-out run's moving rows outside the estimation run's travel above which the
-#: held-out figures are reported as extrapolation: position-dependent terms are identified on the
-#: estimation travel only and held at its ends beyond it.
+#: held-out figures are reported as extrapolation: position-dependent terms are fitted on the
+#: estimation travel only (their polynomials are held at its ends beyond it).
 OUTSIDE_TRAVEL = 0.10
 
 #: Top speeds (99th percentile; m/s linear, rad/s rotary) beyond those of servo axes (linear
