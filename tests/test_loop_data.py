@@ -87,6 +87,23 @@ def test_non_monotonic_time(tmp_path):
         load_axis_data(p, time="t", position="q", force="F")
 
 
+def test_a_few_repeated_time_stamps_are_merged_and_a_coarse_time_column_is_refused(tmp_path):
+    t, q, f = _run(2000)
+    stamped = t.copy()
+    late = [300, 301, 900, 1500, 1777]
+    stamped[late] = stamped[np.array(late) - 1]  # a logger stamping a late sample like the one before
+    stamped[301] = stamped[299]
+    d = load_axis_data(_csv(tmp_path / "run.csv", {"t": stamped, "q": q, "F": f}), time="t", position="q", force="F")
+    assert d.timing["repeated_stamps_merged"] == 5 and d.timing["samples_in"] == 2000 and d.timing["resampled"]
+    np.testing.assert_allclose(np.diff(d.t), 1e-3, rtol=1e-9)
+    # a merged sample is the mean of its samples at the earlier stamp: off by at most a step's change
+    np.testing.assert_allclose(d.force, 3.0 * np.cos(2 * np.pi * d.t), atol=3.0 * 2 * np.pi * 2e-3)
+    # a 2 kHz log stamped in whole milliseconds repeats every other stamp
+    t2 = np.round(np.arange(2000) * 0.5e-3, 3)
+    with pytest.raises(DataError, match="not strictly increasing at row 1: 999 of 2000 time stamps repeat.*rounded too coarsely"):
+        load_axis_data(_csv(tmp_path / "coarse.csv", {"t": t2, "q": 0.01 * np.sin(2 * np.pi * t2), "F": f}), time="t", position="q", force="F")
+
+
 def test_magnitudes_a_fit_cannot_square_are_refused_and_large_physical_ones_are_not():
     t, q, f = _run()
     with pytest.raises(DataError, match=r"force reaches 3e\+200.*check its unit"):

@@ -162,11 +162,13 @@ def read_table(path: str | Path) -> Table:
     return _read_mat(p) if p.suffix.lower() == ".mat" else _read_csv(p)
 
 
-def load_columns(path: str | Path | Table, mapping: Mapping[str, str], *, min_samples: int = 10) -> dict[str, NDArray[np.float64]]:
+def load_columns(path: str | Path | Table, mapping: Mapping[str, str], *, min_samples: int = 10,
+                 repeated_time: bool = False) -> dict[str, NDArray[np.float64]]:
     """Columns by role, e.g. ``load_columns(f, {"time": "t", "position": "qm"})``.
 
     Checks that every column exists, all have the same length, there are at least
-    ``min_samples`` rows, values are finite, and a ``time`` role increases strictly.
+    ``min_samples`` rows, values are finite, and a ``time`` role increases strictly (never
+    decreases, with ``repeated_time``: for a caller that merges samples logged under one stamp).
     """
     table = path if isinstance(path, Table) else read_table(path)
     out = {role: table.column(name, role) for role, name in mapping.items()}
@@ -180,16 +182,18 @@ def load_columns(path: str | Path | Table, mapping: Mapping[str, str], *, min_sa
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
             raise DataError(f"{table.source}: column {mapping[role]!r} ({role}) has a non-finite value at row {bad[0]}")
+    step = None
     if "time" in out:
         d = np.diff(out["time"])
-        if np.any(d <= 0):
-            i = int(np.flatnonzero(d <= 0)[0]) + 1
+        wrong = d < 0 if repeated_time else d <= 0
+        if np.any(wrong):
+            i = int(np.flatnonzero(wrong)[0]) + 1
             raise DataError(f"{table.source}: time column {mapping['time']!r} is not strictly increasing at row {i}")
+        step = float(np.min(d[d > 0], initial=np.inf))
     for role, a in out.items():
         within_fit_range(f"{table.source}: column {mapping[role]!r} ({role})", a, error=DataError)
-    if "time" in out and "position" in out:
-        within_fit_range(f"{table.source}: column {mapping['position']!r} (position)", out["position"],
-                         time_step=float(np.min(np.diff(out["time"]))), error=DataError)
+    if step is not None and np.isfinite(step) and "position" in out:
+        within_fit_range(f"{table.source}: column {mapping['position']!r} (position)", out["position"], time_step=step, error=DataError)
     return out
 
 

@@ -23,6 +23,11 @@ from ..io import Table, load_columns, read_table
 #: Fewest samples a run may have: the filter, the derivatives and the held-out split need room.
 MIN_SAMPLES = 200
 
+#: Largest share of time steps that may repeat the stamp before them: such samples are merged
+#: (averaged), as a logger stamping two samples alike now and then; more is a time column too
+#: coarse for the sample rate (a 2 kHz log stamped in whole ms), which is refused.
+MAX_REPEATED_STAMPS = 0.01
+
 
 @dataclass
 class AxisData:
@@ -90,21 +95,42 @@ class AxisData:
         if n < MIN_SAMPLES:
             raise DataError(f"{self.source}: too few samples ({n}); the loop needs at least {MIN_SAMPLES}")
         d = np.diff(self.t)
-        if np.any(d <= 0):
-            i = int(np.flatnonzero(d <= 0)[0]) + 1
-            raise DataError(f"{self.source}: time is not strictly increasing at row {i}")
+        if np.any(d < 0):
+            i = int(np.flatnonzero(d < 0)[0]) + 1
+            raise DataError(f"{self.source}: time is not strictly increasing at row {i} (it goes back)")
+        repeated = int(np.count_nonzero(d == 0))
+        if repeated > MAX_REPEATED_STAMPS * d.size:
+            i = int(np.flatnonzero(d == 0)[0]) + 1
+            raise DataError(f"{self.source}: time is not strictly increasing at row {i}: {repeated} of {n} time stamps repeat the one "
+                            "before, too many for a late sample now and then; is the time column rounded too coarsely for the "
+                            "sample rate?")
+        if repeated:
+            self._merge_repeated_stamps()
+            d = np.diff(self.t)
+            if self.t.size < MIN_SAMPLES:
+                raise DataError(f"{self.source}: too few samples ({self.t.size} time stamps); the loop needs at least {MIN_SAMPLES}")
         for name in ("t", "position", "force", "command", "reference", "disturbance"):
             if (a := getattr(self, name)) is not None:
                 within_fit_range(f"{self.source}: {name}", a, error=DataError)
         within_fit_range(f"{self.source}: position", self.position, time_step=float(np.min(d)), error=DataError)
         if not self.timing:
             self.timing = timing_summary(self.t)
+            if repeated:
+                self.timing.update(samples_in=n, repeated_stamps_merged=repeated)
             if self.timing["irregular"]:
                 self._resample()
         if np.ptp(self.position) == 0:
             raise DataError(f"{self.source}: position never changes; nothing to identify")
         if not np.any(self.force != 0):
             raise DataError(f"{self.source}: force is zero everywhere")
+
+    def _merge_repeated_stamps(self) -> None:
+        """One sample per time stamp: the samples logged under one stamp averaged."""
+        self.t, group, count = np.unique(self.t, return_inverse=True, return_counts=True)
+        for name in ("position", "force", "command", "reference", "disturbance"):
+            a = getattr(self, name)
+            if a is not None:
+                setattr(self, name, np.bincount(group, weights=a) / count)
 
     def _resample(self) -> None:
         """Put every signal on a uniform grid at the median step (linear interpolation).
@@ -237,7 +263,7 @@ def load_axis_data(
         mapping["reference"] = reference
     if disturbance is not None:
         mapping["disturbance"] = disturbance
-    cols = load_columns(table, mapping, min_samples=MIN_SAMPLES)
+    cols = load_columns(table, mapping, min_samples=MIN_SAMPLES, repeated_time=True)
     g = None
     if command is not None:
         g = table.number(gain, role="gain")  # type: ignore[arg-type]

@@ -244,6 +244,8 @@ def format_table(result: "LoopResult") -> str:
         del fu
     tm = d.get("timing") or {}
     for run, t in (tm.items() if "estimation" in tm else [("estimation", tm)]):
+        if t.get("repeated_stamps_merged"):
+            lines.append(f"  {run} log: {t['repeated_stamps_merged']} repeated time stamps, the samples of each averaged into one")
         if t.get("resampled"):
             lines.append(f"  {run} log resampled onto a uniform {t['median_step_s'] * 1e3:.4g} ms grid (steps from {t['min_step_s'] * 1e3:.4g} to "
                          f"{t['max_step_s'] * 1e3:.4g} ms, {t['irregular_steps_pct']:.1f} % irregular)"
