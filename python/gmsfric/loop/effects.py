@@ -251,23 +251,6 @@ class Effect:
             return alpha
         return None
 
-    @property
-    def judged_clear_of_reversals(self) -> bool:
-        """Whether the family-wise test of the effect is made on the held-out rows clear of
-        reversals and stops (a whole-motion effect that is not :attr:`consistency_only`: a delay).
-        All moving rows then only have to agree, at the nominal ``alpha`` with the minimum gain:
-        next to reversals and stops the filters' response to the switch of friction can mimic or
-        mask the effect, and asking both sets of rows for the family-wise level missed a delay
-        that gains 25 % on held-out data (held-out t = 2.8 on all rows and 7.1 clear of
-        reversals)."""
-        return self.whole_motion and not self.consistency_only
-
-    def level_on_all_rows(self, level: float, alpha: float) -> float:
-        """Level at which the effect's gain on all moving held-out rows must hold: the family-wise
-        ``level``, or the nominal ``alpha`` (no floor on t) when it is
-        :attr:`judged_clear_of_reversals`."""
-        return alpha if self.judged_clear_of_reversals else level
-
     def applicable(self, model: LinearModel) -> bool:
         return self.name not in model.effects and not (self.name == "offset" and any(t.name == "offset" for t in model.terms))
 

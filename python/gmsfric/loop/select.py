@@ -1043,13 +1043,12 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
         reasons.append("no cross-validated gain on estimation data")
     if h.gain < cfg.min_gain:
         reasons.append(f"held-out error gain {100 * h.gain:.2f} % < {100 * cfg.min_gain:.2f} %")
-    all_level = eff.level_on_all_rows(level, cfg.alpha)
-    if h.p > all_level or (h.t < cfg.t_threshold and not eff.judged_clear_of_reversals):
-        reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {all_level:.2g})" if h.p > all_level
+    if h.p > level or h.t < cfg.t_threshold:
+        reasons.append(f"held-out gain within noise (t = {h.t:.2f}, p = {h.p:.2g} > {level:.2g})" if h.p > level
                        else f"held-out t = {h.t:.2f} < {cfg.t_threshold}")
     if h_cur is not h:
         ev["t_heldout_against_current_model"] = round(h_cur.t, 2)
-        if h_cur.p > all_level or h_cur.gain < cfg.min_gain:
+        if h_cur.p > level or h_cur.gain < cfg.min_gain:
             reasons.append(f"the model with it is no better than the current model on held-out data (gain "
                            f"{100 * h_cur.gain:.2f} %, t = {h_cur.t:.2f}, p = {h_cur.p:.2g})")
     if far_level is not None and h_far is None:
@@ -1193,8 +1192,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
         for eff, other in ((ea, eb), (eb, ea)):
             reduced = _fit(_tested_against(both, eff.name, ps), split)
             hm = heldout(split, reduced, both, st.chunk, effect=eff.name)
-            ok = (hm.p <= eff.level_on_all_rows(level, cfg.alpha) and (eff.judged_clear_of_reversals or hm.t >= cfg.t_threshold)
-                  and hm.gain >= cfg.min_gain)
+            ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain >= cfg.min_gain
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
             far_level = eff.level_clear_of_reversals(both, level, cfg.alpha)
             if far_level is not None:
