@@ -3,6 +3,7 @@ when asked for help or given an unknown one."""
 
 from __future__ import annotations
 
+import ast
 import subprocess
 import sys
 
@@ -23,7 +24,7 @@ print(code, ",".join(loaded), repr(out.getvalue() + err.getvalue()))
 def _run(*argv: str) -> tuple[int, set[str], str]:
     proc = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, timeout=120, check=True)
     code, loaded, text = proc.stdout.strip().split(" ", 2)
-    return int(code), set(filter(None, loaded.split(","))), eval(text)  # noqa: S307 - our own repr
+    return int(code), set(filter(None, loaded.split(","))), ast.literal_eval(text)
 
 
 @pytest.mark.parametrize("command", ["loop", "glitch", "paper"])

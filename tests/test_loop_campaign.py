@@ -585,7 +585,7 @@ def test_a_delay_clear_of_reversals_is_tested_on_chunks_cut_for_those_rows(monke
 
 
 def test_a_delay_must_also_pass_on_all_moving_rows():
-    """A clean rig of the campaign's seed 69 (drawn fresh, never tuned on): a delay gains there
+    """A clean rig of the campaign's seed 69 (drawn fresh for this check): a delay gains there
     clear of reversals and stops (t = 4.6), but nothing on all moving rows (t = 2.1, p = 0.027).
     Judged on the rows clear of reversals with all rows asked only for the nominal level, the
     loop named it; asking all rows for the family-wise level as well, it ends with nothing."""
