@@ -68,6 +68,24 @@ def test_the_jittered_rotary_log_is_resampled_and_reported_in_rotary_units(ci_ru
     assert d["standstill"]["rest_speed_unit"] == "rad/s"
 
 
+def test_a_case_command_can_be_pasted_into_a_shell(ci_run):
+    """``command.txt`` reproduces a case by hand: split as a shell splits it, it parses as the
+    loop command that ran, a unit with a space ("N m") as one word."""
+    import shlex
+
+    from gmsfric.cli import build_parser
+
+    _, _, out = ci_run
+    units = []
+    for case in campaign_cases.ci_cases():
+        words = shlex.split((out / case["id"] / "command.txt").read_text())
+        loop = words[words.index("loop"):]
+        args = build_parser(loop).parse_args(loop)
+        assert args.json == str(out / case["id"] / "loop.json")
+        units.append(args.force_unit)
+    assert any(u is not None and " " in u for u in units), units
+
+
 def test_a_clean_rigs_own_detectable_presliding_is_not_scored_false():
     """A clean rig whose Maxwell-slip contact has pre-sliding the truth's own column finds
     detectable (held-out gain >= 10 %) has that effect natively; below the rule it is false."""

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -101,7 +102,7 @@ def run_case(case: dict[str, Any], out: Path, gmsfric: list[str], timeout: float
     out_json = d / "loop.json"
     out_json.unlink(missing_ok=True)
     cmd = loop_command(case, fe, fv, out_json, gmsfric)
-    (d / "command.txt").write_text(" ".join(cmd) + "\n")
+    (d / "command.txt").write_text(shlex.join(cmd) + "\n")  # quoted: units such as "N m" hold a space
     t1 = time.perf_counter()
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=dict(os.environ, MPLBACKEND="Agg"))
