@@ -613,3 +613,45 @@ def test_a_delay_must_also_pass_on_all_moving_rows():
     assert res.effects == []
     step = next(s for s in res.steps if s.effect == "input_delay")
     assert step.evidence["t_heldout_away_from_reversals"] >= 3.0 and step.evidence["p_heldout"] > step.evidence["level"]
+
+
+def test_the_timing_a_run_prefers_is_the_planted_one_on_an_ideal_rig():
+    """`delay_timing.py` measures the shift the true model fits best on each run (the ceiling of
+    any delay chosen on the estimation run).  On a rig with a negligible encoder step and no force
+    noise, driven by a sweep, both runs must prefer the planted delay plus the sampling hold, to
+    within the grid's quarter sample."""
+    from loop_campaign import delay_timing
+    from loop_campaign.cases import make_cases
+
+    case = next(c for c in make_cases(69) if c["id"] == "single-107-input_delay")
+    assert case["traj"]["est"]["kind"] == "sweep"
+    true, est, val = delay_timing.best_shifts(delay_timing.idealised(case))
+    assert true > 4.0  # several samples beyond the timing alignment
+    assert abs(est - true) <= delay_timing.STEP and abs(val - true) <= delay_timing.STEP
+    gain, reach = delay_timing.gains(case)
+    assert gain >= 0.10 and reach >= 0.10  # detectable beyond the alignment, and reachable
+
+
+def test_an_effect_held_back_only_by_the_plausibility_guard_is_reported():
+    """Seed 73 `single-150`: an offset of 25 N on an axis sliding at 39 N, estimated with the rigid
+    baseline (no offset in it).  The baseline absorbs the offset into a Coulomb level of 19 N and a
+    viscous coefficient six times too large; the offset passes every test of the data, but doubles
+    the Coulomb level, so the plausibility guard keeps it out.  The result must say so: a
+    `held_back` diagnostic naming the offset, while the offset's step holds the physical values."""
+    import warnings
+
+    from gmsfric.loop import LoopConfig, run_loop
+
+    runs = _campaign_runs(73, "single-150-offset")
+    cfg = LoopConfig(progress=False, baseline=("inertia", "viscous", "coulomb"), effects=("offset",))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = run_loop(*runs, cfg)
+    assert res.effects == []
+    step = next(s for s in res.steps if s.effect == "offset")
+    assert step.evidence["held_back_by_plausibility"] and step.evidence["validation_gain"] > 0.5
+    true_fc = 39.2
+    assert abs(step.parameters["Fc"]["value"] - true_fc) < 0.1 * true_fc
+    assert res.baseline.params()["Fc"]["value"] < 0.6 * true_fc
+    held = [d for d in res.diagnostics if d["code"] == "held_back"]
+    assert [d["parameter"] for d in held] == ["offset"] and "Coulomb level" in held[0]["message"]

@@ -32,6 +32,7 @@ CODES = {
     "poor_fit": "the model explains little of the data (wrong signal, gain or unit?)",
     "units": "a scale implausible for a servo axis (sample rate, speed): a column in another unit than declared?",
     "delay_ambiguous": "another delay fits about as well (a periodic excitation's lines cannot tell delays a whole period apart)",
+    "held_back": "an effect the data support, kept out because it would make the baseline's physics implausible",
 }
 
 

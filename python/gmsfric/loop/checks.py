@@ -3,7 +3,8 @@
 The loop can end with "no effect added" and a tidy table on a run that did not let it identify
 anything: a force column unrelated to the motion, a run in one direction only (Coulomb friction
 and an offset are then one number), a clipped drive, a time or position column in another unit
-than declared, a held-out run that leaves the estimation run's travel.  These checks put such
+than declared, a held-out run that leaves the estimation run's travel, an effect the data
+support that was held back only to keep the baseline's physics plausible.  These checks put such
 findings in the result's ``diagnostics`` (``{"code", "parameter", "message"}`` in the JSON) and
 warn each with :class:`~gmsfric.errors.FitWarning`; the CLI prints them under the table.  They
 only report: the selection does not use them.
@@ -89,6 +90,7 @@ def check_result(result: "LoopResult") -> Findings:
         found.add("units", f"the axis moves at up to {speed:.4g} {unit}, beyond the {TOP_SPEED[kind]:g} {unit} of servo axes: "
                            "is the position column in the declared unit (--position-unit)?", "position")
     _check_travel(found, result)
+    _check_held_back(found, result)
     error = result.split.errors_moving(result.final)[0]
     if error > POOR_FIT_PCT:
         found.add("poor_fit", f"the final model leaves {error:.0f} % of the force unexplained (relative rms error on the moving rows of the estimation run): "
@@ -115,6 +117,31 @@ def check_result(result: "LoopResult") -> Findings:
                                             "only a combination of them is determined",
                               f"{names[i]},{names[j]}")
     return found
+
+
+def _check_held_back(found: Findings, result: "LoopResult") -> None:
+    """An effect that passed every test of the data and was refused only because it moves the
+    baseline's physics too far (``max_parameter_ratio``, a negative mass or viscosity) is either
+    the right effect on a baseline that absorbed it (a run that moves more one way than the
+    other, an offset the Coulomb level stood in for) or an effect that explains friction away:
+    the data alone cannot tell, so the user is shown the effect and its strongest held-out
+    evidence."""
+    best: dict[str, dict] = {}
+    for step in result.steps:
+        ev = step.evidence
+        if step.accepted or step.effect in result.effects or not ev.get("held_back_by_plausibility") or "replaces" in ev:
+            continue
+        if step.effect not in best or ev["t_heldout"] > best[step.effect]["evidence"]["t_heldout"]:
+            best[step.effect] = {"evidence": ev, "reason": step.reason}
+    for effect, held in best.items():
+        ev = held["evidence"]
+        after = ev["moving_rows_error_pct"]["validation"]
+        before = after / max(1.0 - ev["validation_gain"], 1e-12)
+        why = held["reason"].removeprefix("implausible baseline: ")
+        found.add("held_back", f"{effect} passed every test of the data (held-out error {before:.3g} -> {after:.3g} % on the {ev['judged_on']}, "
+                               f"t = {ev['t_heldout']:.1f}) but was not added because {why}: either the baseline had absorbed it (a run that "
+                               "moves more one way than the other lets the Coulomb level stand in for an offset) or it explains friction away; "
+                               "compare the two models' parameters (the step's in the JSON) before trusting either", effect)
 
 
 def _check_travel(found: Findings, result: "LoopResult") -> None:

@@ -1062,6 +1062,9 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     if dbic >= 0:
         reasons.append(f"BIC does not decrease ({dbic:+.1f})")
     if implausible is not None:
+        if not reasons:
+            # every test of the data passed: the report says so (``held_back`` diagnostic)
+            ev["held_back_by_plausibility"] = True
         reasons.append(implausible)
     return Step(rnd, eff.name, False, "; ".join(reasons), ev, e_est, e_val, m.params(), m), h, h_cur
 
