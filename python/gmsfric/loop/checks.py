@@ -139,8 +139,8 @@ def _check_held_back(found: Findings, result: "LoopResult") -> None:
         before = after / max(1.0 - ev["validation_gain"], 1e-12)
         why = held["reason"].removeprefix("implausible baseline: ")
         found.add("held_back", f"{effect} passed every test of the data (held-out error {before:.3g} -> {after:.3g} % on the {ev['judged_on']}, "
-                               f"t = {ev['t_heldout']:.1f}) but was not added because {why}: either the baseline had absorbed it (a run that "
-                               "moves more one way than the other lets the Coulomb level stand in for an offset) or it explains friction away; "
+                               f"t = {ev['t_heldout']:.1f}) but was not added, to keep the baseline plausible ({why}): either the baseline had absorbed it "
+                               "(a run that moves more one way than the other lets the Coulomb level stand in for an offset) or it explains friction away; "
                                "compare the two models' parameters (the step's in the JSON) before trusting either", effect)
 
 
