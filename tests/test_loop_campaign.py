@@ -625,11 +625,11 @@ def test_the_timing_a_run_prefers_is_the_planted_one_on_an_ideal_rig():
 
     case = next(c for c in make_cases(69) if c["id"] == "single-107-input_delay")
     assert case["traj"]["est"]["kind"] == "sweep"
-    true, est, val = delay_timing.best_shifts(delay_timing.idealised(case))
-    assert true > 4.0  # several samples beyond the timing alignment
-    assert abs(est - true) <= delay_timing.STEP and abs(val - true) <= delay_timing.STEP
-    gain, reach = delay_timing.gains(case)
-    assert gain >= 0.10 and reach >= 0.10  # detectable beyond the alignment, and reachable
+    ideal = delay_timing.timing(delay_timing.idealised(case))
+    assert ideal.true > 4.0  # several samples beyond the timing alignment
+    assert abs(ideal.est - ideal.true) <= delay_timing.STEP and abs(ideal.val - ideal.true) <= delay_timing.STEP
+    logged = delay_timing.timing(case)
+    assert logged.gain >= 0.10 and logged.reach >= 0.10  # detectable beyond the alignment, and reachable
 
 
 def test_an_effect_held_back_only_by_the_plausibility_guard_is_reported():

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import copy
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -57,39 +58,44 @@ def _best(sig: Any, others: list[dict[str, Any]], off: bool, grid: Any, v_min: f
     return float(grid[int(np.argmin(sse))])
 
 
-def gains(case: dict[str, Any]) -> tuple[float, float]:
-    """Held-out gains (moving rows) of the true model over the timing alignment (the shift within
-    one sample that the estimation run prefers, the loop's null for a delay): with the planted
-    delay (the ground truth's ``gain_beyond_null`` of a single delay) and with the shift that the
-    estimation run prefers (what any method choosing on that run can reach at best)."""
+@dataclass
+class Timing:
+    """Total force shifts (samples of the logged rate) of one planted-delay case: the planted one
+    (delay plus sampling hold) and the ones the true model fits best on each run's moving rows
+    (``*_fast``: only on the rows faster than :data:`FAST` of the top speed); and the true model's
+    held-out gains over the timing alignment (the shift within one sample that the estimation run
+    prefers, the loop's null for a delay) with the planted shift (``gain``, the ground truth's
+    ``gain_beyond_null`` of a single delay) and with the one the estimation run prefers
+    (``reach``: the most that a delay chosen on that run can gain)."""
+
+    true: float
+    est: float
+    val: float
+    est_fast: float
+    val_fast: float
+    gain: float
+    reach: float
+
+
+def timing(case: dict[str, Any]) -> Timing:
+    """Simulate both runs of ``case`` once and measure its :class:`Timing`."""
     est, val = simulate_run(case, "est"), simulate_run(case, "val")
     se, sv = true_signals(case, est, val)
     others = case.get("native", []) + [e for e in case["effects"] if e["name"] != "input_delay"]
     tau = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay")
     off = case.get("baseline", "reference") == "reference"
-    fit = lambda s: errors(se, sv, others, s * se.dt, off, moving=True)  # noqa: E731
-    null = min(fit(k / 10) for k in range(11))[1]
-    true = fit((tau + est.hold) / se.dt)[1]
-    chosen = min(fit(s) for s in np.arange(0.0, max(8.0, 2.0 * (tau + est.hold) / se.dt) + 1e-9, STEP))[1]
-    return (null - true) / null, (null - chosen) / null
-
-
-def best_shifts(case: dict[str, Any], fast: bool = False) -> tuple[float, float, float]:
-    """``(true, est, val)`` total shifts in samples: the planted one, and the one the true model
-    fits best on each run's moving rows (``fast``: only the rows faster than :data:`FAST`)."""
-    est, val = simulate_run(case, "est"), simulate_run(case, "val")
-    se, sv = true_signals(case, est, val)
-    others = case.get("native", []) + [e for e in case["effects"] if e["name"] != "input_delay"]
-    tau = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay")
     true = (tau + est.hold) / se.dt
-    off = case.get("baseline", "reference") == "reference"
     grid = np.arange(0.0, max(8.0, 2.0 * true) + 1e-9, STEP)
-    v_min = (FAST if fast else STANDSTILL) * float(np.percentile(np.abs(se.rows["qd"]), 99))
-    return true, _best(se, others, off, grid, v_min), _best(sv, others, off, grid, v_min)
+    top = float(np.percentile(np.abs(se.rows["qd"]), 99))
+    best = {k: _best(sig, others, off, grid, frac * top) for k, sig, frac in
+            (("est", se, STANDSTILL), ("val", sv, STANDSTILL), ("est_fast", se, FAST), ("val_fast", sv, FAST))}
+    fit = lambda s: errors(se, sv, others, s * se.dt, off, moving=True)  # noqa: E731
+    null = min(fit(k / 10) for k in range(11))[1]  # the alignment the estimation rows choose
+    return Timing(true=true, **best, gain=(null - fit(true)[1]) / null, reach=(null - fit(best["est"])[1]) / null)
 
 
 def idealised(case: dict[str, Any]) -> dict[str, Any]:
-    """The case with an encoder finer than any motion's noise and no force noise."""
+    """The case with an encoder step a thousand times finer and no force noise."""
     out = copy.deepcopy(case)
     out["rig"]["quant"] = 1e-3 * out["rig"]["quant"]
     out["rig"]["noise"] = 0.0
@@ -109,18 +115,17 @@ def main(argv: list[str] | None = None) -> int:
     print(head + ("  ideal: est   val" if args.ideal else "") + ("  fast: est   val" if args.fast else ""))
     rows = []
     for case in cases:
-        true, be, bv = best_shifts(case)
-        g_true, g_reach = gains(case)
-        line = (f"{case['id']:52s} {case['traj']['est']['kind']:>9s} {case['traj']['val']['kind']:>9s} {true:5.2f} {be:5.2f} {bv:5.2f}"
-                f" {g_true:6.3f} {g_reach:6.3f}")
-        ideal = best_shifts(idealised(case))[1:] if args.ideal else (np.nan, np.nan)
-        if args.ideal:
-            line += f"        {ideal[0]:5.2f} {ideal[1]:5.2f}"
-        quick = best_shifts(case, fast=True)[1:] if args.fast else (np.nan, np.nan)
+        tm = timing(case)
+        line = (f"{case['id']:52s} {case['traj']['est']['kind']:>9s} {case['traj']['val']['kind']:>9s} {tm.true:5.2f} {tm.est:5.2f} {tm.val:5.2f}"
+                f" {tm.gain:6.3f} {tm.reach:6.3f}")
+        ideal = timing(idealised(case)) if args.ideal else None
+        if ideal is not None:
+            line += f"        {ideal.est:5.2f} {ideal.val:5.2f}"
         if args.fast:
-            line += f"       {quick[0]:5.2f} {quick[1]:5.2f}"
+            line += f"       {tm.est_fast:5.2f} {tm.val_fast:5.2f}"
         print(line, flush=True)
-        rows.append((case["traj"]["est"]["kind"], true, be, bv, *ideal, *quick, g_true, g_reach))
+        rows.append((case["traj"]["est"]["kind"], tm.true, tm.est, tm.val, ideal.est if ideal else np.nan, ideal.val if ideal else np.nan,
+                     tm.est_fast if args.fast else np.nan, tm.val_fast if args.fast else np.nan, tm.gain, tm.reach))
     a = np.array([r[1:] for r in rows], dtype=float)
     kinds = np.array([r[0] for r in rows])
     det, reach = a[:, 7] >= DETECTABLE, a[:, 8] >= DETECTABLE
