@@ -5,7 +5,9 @@ project's own generators).
 
 generates the cases (estimation + validation CSV and the planted truth per case), runs the CLI
 on each (one at a time), and writes results.jsonl and summary.txt into --out.  Re-running with
-the same --out skips cases that already have a JSON (use --fresh to redo).
+the same --out skips cases that already have a JSON (use --fresh to redo).  Every planted effect
+is also scored against its true held-out gain (truth.py, cached in the case's detect.json): recall
+at the strengths where it is detectable.
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import rigs  # noqa: E402
+from truth import DETECTABLE, cached_gains  # noqa: E402
 
 EFFECTS = ["asymmetric_friction", "stribeck", "presliding_hysteresis",
            "position_dependent_friction", "position_dependent_force", "input_delay",
@@ -290,13 +293,22 @@ def score(rows):
     fails = [r for r in rows if r["rc"] != 0]
     L.append(f"cases: {n}  (CLI ran OK on {len(ok)}, failures {len(fails)})")
     L.append("")
-    L.append(f"{'effect':30s} {'planted':>7s} {'found':>6s} {'recall':>7s} {'named falsely':>14s}")
+    # the columns after "named falsely" count only the planted effects that are detectable
+    # (truth.py: true held-out gain >= 10 %), on all moving rows and on the rows clear of
+    # reversals and stops
+    L.append(f"{'effect':30s} {'planted':>7s} {'found':>6s} {'recall':>7s} {'named falsely':>14s}"
+             f" {'detectable':>11s} {'found@det':>10s} {'recall@det':>11s} {'det(clear)':>11s} {'found':>6s}")
     for e in EFFECTS:
         pl = [r for r in ok if e in r["planted"]]
         fo = [r for r in pl if e in r["named"]]
         fa = [r for r in ok if e in r["named"] and e not in r["planted"]]
         rec = f"{len(fo) / len(pl):.2f}" if pl else "-"
-        L.append(f"{e:30s} {len(pl):7d} {len(fo):6d} {rec:>7s} {len(fa):14d}")
+        de = [r for r in pl if detectable(r, e)]
+        dfo = [r for r in de if e in r["named"]]
+        drec = f"{len(dfo) / len(de):.2f}" if de else "-"
+        dc = [r for r in pl if detectable(r, e, clear=True)]
+        L.append(f"{e:30s} {len(pl):7d} {len(fo):6d} {rec:>7s} {len(fa):14d}"
+                 f" {len(de):11d} {len(dfo):10d} {drec:>11s} {len(dc):11d} {sum(e in r['named'] for r in dc):6d}")
     other = {}
     for r in ok:
         for x in r["named"]:
@@ -317,8 +329,14 @@ def score(rows):
     pr = [r for r in ok if len(r["planted"]) == 2]
     L.append(f"pairs with both found: {sum(1 for r in pr if all(e in r['named'] for e in r['planted']))} / {len(pr)}"
              f"  (at least one: {sum(1 for r in pr if any(e in r['named'] for e in r['planted']))})")
+    pd = [r for r in pr if all(detectable(r, e) for e in r["planted"])]
+    L.append(f"pairs with both detectable: {len(pd)} / {len(pr)}, both found among them: "
+             f"{sum(1 for r in pd if all(e in r['named'] for e in r['planted']))} / {len(pd)}")
     tot = sum(len(r["planted"]) for r in ok)
     L.append(f"overall recall: {sum(len([e for e in r['planted'] if e in r['named']]) for r in ok)} / {tot}")
+    dt = [(r, e) for r in ok for e in r["planted"] if detectable(r, e)]
+    L.append(f"overall recall at detectable: {sum(1 for r, e in dt if e in r['named'])} / {len(dt)}"
+             f"  (planted effects without a true gain: {sum(1 for r in ok for e in r['planted'] if e not in r.get('gain', {}))})")
     L.append(f"exact (named set == planted set): {sum(1 for r in ok if set(r['named']) == set(r['planted']))} / {len(ok)}")
     L.append(f"CLI seconds: median {np.median([r['seconds'] for r in rows]):.1f}, max {max(r['seconds'] for r in rows):.1f}")
     L.append("")
@@ -330,11 +348,33 @@ def score(rows):
     for r in ok:
         for e in r["planted"]:
             if e not in r["named"]:
-                L.append(f"  {r['id']} MISSED {e} [{r['strength_brief'].get(e, '')}] named={r['named']}: {r['reasons'].get(e, '')}")
+                L.append(f"  {r['id']} MISSED {e} [{r['strength_brief'].get(e, '')}] named={r['named']}: {r['reasons'].get(e, '')}"
+                         f" [true gain {_fmt(r.get('gain', {}).get(e))}, clear {_fmt(r.get('gain_clear', {}).get(e))}]")
         for e in r["named"]:
             if e not in r["planted"]:
                 L.append(f"  {r['id']} FALSE  {e} (planted={r['planted']}): {r['reasons'].get(e, '')}")
     return "\n".join(L)
+
+
+def detectable(row, eff, clear=False):
+    """Whether the planted ``eff`` of ``row`` is detectable (truth.py); False when unknown."""
+    g = row.get("gain_clear" if clear else "gain", {}).get(eff)
+    return g is not None and g >= DETECTABLE
+
+
+def attach_truth(row, cdir: Path, fresh=False):
+    """Add the planted effects' true held-out gains (truth.py, cached in ``cdir/detect.json``) to
+    ``row``: ``gain``, ``gain_clear`` and ``detectable``, each by effect."""
+    try:
+        g = cached_gains(cdir, fresh)["effects"]
+    except Exception as ex:  # noqa: BLE001 -- the audit goes on; the row says why it has none
+        row["truth_error"] = f"{type(ex).__name__}: {ex}"
+        return row
+    row.pop("truth_error", None)
+    row["gain"] = {e: g[e]["gain"] for e in row["planted"]}
+    row["gain_clear"] = {e: g[e].get("gain_clear") for e in row["planted"]}
+    row["detectable"] = {e: g[e]["detectable"] for e in row["planted"]}
+    return row
 
 
 def brief(strengths):
@@ -373,7 +413,10 @@ def main():
         cdir = out / c["id"]
         rj = cdir / "row.json"
         if rj.exists() and not a.fresh:
-            rows.append(json.loads(rj.read_text()))
+            row = json.loads(rj.read_text())
+            if "gain" not in row or not (cdir / "detect.json").exists():
+                rj.write_text(json.dumps(attach_truth(row, cdir), indent=1))
+            rows.append(row)
             continue
         t0 = time.time()
         truth = build_case(c, out)
@@ -393,6 +436,7 @@ def main():
                    strength_brief=brief(truth["strengths"]), sim_seconds=ts,
                    rotary=truth["rig"]["rotary"], fs_log=truth["rig"]["fs_log"],
                    units=truth["units"], **res)
+        attach_truth(row, cdir, fresh=True)
         rj.write_text(json.dumps(row, indent=1))
         rows.append(row)
         print(f"{c['id']} {'R' if row['rotary'] else 'L'} {row['fs_log']:.0f}Hz planted={c['planted']} "
