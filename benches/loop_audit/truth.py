@@ -179,7 +179,10 @@ def cached_gains(cdir: Path, fresh: bool = False) -> dict:
     """:func:`case_gains`, cached in ``cdir/detect.json``."""
     p = cdir / "detect.json"
     if p.exists() and not fresh:
-        return json.loads(p.read_text())
+        try:
+            return json.loads(p.read_text())
+        except json.JSONDecodeError:
+            pass   # a run cut off while writing it: computed again
     g = case_gains(cdir)
     p.write_text(json.dumps(g, indent=1))
     return g
