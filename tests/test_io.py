@@ -62,3 +62,77 @@ def test_mismatched_lengths_and_missing_file(tmp_path):
         read_table(tmp_path / "nope.csv")
     with pytest.raises(DataError, match="neither a number nor a scalar"):
         read_table(tmp_path / "m.mat").number("gtau")
+
+
+def _log(n=300):
+    t = np.arange(n) * 1e-2
+    q = np.column_stack([np.zeros(n), np.sin(t), 0.5 * t])
+    return t, q
+
+
+def test_mat_structs_and_matrices_are_named_as_in_matlab(tmp_path):
+    t, q = _log()
+    savemat(tmp_path / "log.mat", {"log": {"t": t, "q": q, "joint": {"kt": 1.7, "tau": q.T}}, "label": "run 3"})
+    tab = read_table(tmp_path / "log.mat")
+    cols = load_columns(tab, {"time": "log.t", "position": "log.q(:,2)", "force": "log.joint.tau(3,:)"})
+    np.testing.assert_array_equal(cols["time"], t)
+    np.testing.assert_array_equal(cols["position"], q[:, 1])
+    np.testing.assert_array_equal(cols["force"], q[:, 2])  # a wide matrix holds its signals in rows
+    np.testing.assert_array_equal(tab.column("log.q(:, 2)"), q[:, 1])  # spaced as one may type it
+    assert tab.number("log.joint.kt") == 1.7
+    with pytest.raises(DataError, match=r"'log.q' is a 300x3 matrix; name one of its signals, e.g. log.q\(:,1\)"):
+        tab.column("log.q", "position")
+    with pytest.raises(DataError, match=r"'log.q\(:,4\)'; available columns: .*log.q\(:,3\)"):
+        tab.column("log.q(:,4)", "position")
+
+
+def test_a_mat_file_without_signals_says_what_it_holds(tmp_path):
+    savemat(tmp_path / "text.mat", {"name": "axis 2", "cells": np.array([np.arange(3.0), np.arange(4.0)], dtype=object),
+                                    "z": np.arange(3) + 1j})
+    with pytest.raises(DataError, match=r"no numeric vectors in the file \(not read: .*cells.*z"):
+        read_table(tmp_path / "text.mat")
+
+
+def _save_mat73(path, variables):
+    """A file laid out as MATLAB's ``save -v7.3`` writes it: HDF5 behind a 512-byte header,
+    arrays transposed (column-major), structs as groups."""
+    h5py = pytest.importorskip("h5py")
+
+    def put(group, name, value):
+        if isinstance(value, dict):
+            sub = group.create_group(name)
+            sub.attrs["MATLAB_class"] = np.bytes_("struct")
+            for k, v in value.items():
+                put(sub, k, v)
+        elif isinstance(value, str):
+            ds = group.create_dataset(name, data=np.frombuffer(value.encode("utf-16-le"), dtype=np.uint16)[:, None])
+            ds.attrs["MATLAB_class"] = np.bytes_("char")
+        else:
+            ds = group.create_dataset(name, data=np.atleast_2d(np.asarray(value, dtype=float)).T)
+            ds.attrs["MATLAB_class"] = np.bytes_("double")
+
+    with h5py.File(path, "w", userblock_size=512) as fh:
+        for k, v in variables.items():
+            put(fh, k, v)
+    header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Sat Nov 28 12:00:00 2026 HDF5 schema 1.00 ."
+    with open(path, "r+b") as fh:
+        fh.write(header.ljust(116, b" ") + b"\x00" * 8 + b"\x00\x02" + b"IM")
+
+
+def test_mat_v73_files_are_read_like_older_ones(tmp_path):
+    t, q = _log()
+    _save_mat73(tmp_path / "v73.mat", {"t": t[:, None], "q": q, "s": {"gain": np.array([[2.5]]), "name": "joint 2"}})
+    savemat(tmp_path / "v7.mat", {"t": t[:, None], "q": q, "s": {"gain": 2.5, "name": "joint 2"}})
+    new, old = read_table(tmp_path / "v73.mat"), read_table(tmp_path / "v7.mat")
+    assert sorted(new.columns) == sorted(old.columns) == ["q(:,1)", "q(:,2)", "q(:,3)", "t"]
+    for name in old.columns:
+        np.testing.assert_array_equal(new.column(name), old.column(name))
+    assert new.scalars == old.scalars == {"s.gain": 2.5}
+
+
+def test_mat_v73_without_h5py_says_how_to_read_it(tmp_path, monkeypatch):
+    t, q = _log()
+    _save_mat73(tmp_path / "v73.mat", {"t": t[:, None]})
+    monkeypatch.setitem(__import__("sys").modules, "h5py", None)  # import h5py now fails
+    with pytest.raises(DataError, match=r"MATLAB -v7.3 \(HDF5\) file; install h5py .* '-v7'"):
+        read_table(tmp_path / "v73.mat")

@@ -101,3 +101,25 @@ def test_cli_refuses_flags_it_would_ignore(rig_csv, tmp_path, capsys, extra, mes
     assert main([*_loop_argv(path, gain), *[e.format(other=other) for e in extra]]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
+
+
+def test_cli_reads_a_matlab_log_of_several_axes_as_the_same_run(rig_csv, tmp_path, capsys):
+    # a MATLAB user's log: a struct, one matrix column per axis, the other axes held
+    path, gain = rig_csv
+    raw = np.loadtxt(path, delimiter=",", skiprows=1)
+    held = np.full_like(raw[:, 1], 12.5)
+    from scipy.io import savemat
+    savemat(tmp_path / "log.mat", {"log": {"t": raw[:, 0], "x": np.column_stack([held, raw[:, 1], held]),
+                                           "u": np.column_stack([0 * held, raw[:, 2], 0 * held]), "kt": gain}})
+    outs = []
+    for src, cols in ((path, ["t_ms", "x_mm", "u", str(gain)]), (tmp_path / "log.mat", ["log.t", "log.x(:,2)", "log.u(:,2)", "log.kt"])):
+        out = tmp_path / f"{src.stem}.json"
+        assert main(["loop", str(src), "--time", cols[0], "--time-unit", "ms", "--position", cols[1], "--position-unit", "mm",
+                     "--command", cols[2], "--gain", cols[3], "--json", str(out), "--quiet"]) == 0
+        outs.append(json.loads(out.read_text()))
+    assert outs[1]["final"]["effects"] == outs[0]["final"]["effects"] == ["position_dependent_force"]
+    assert outs[1]["final"]["validation_error_pct"] == pytest.approx(outs[0]["final"]["validation_error_pct"], rel=1e-9)
+    assert outs[1]["provenance"]["columns"]["position"] == "log.x(:,2)"
+    capsys.readouterr()
+    assert main(["loop", str(tmp_path / "log.mat"), "--time", "log.t", "--position", "log.x", "--command", "log.u(:,2)", "--gain", "log.kt", "--quiet"]) == 2
+    assert f"'log.x' is a {raw.shape[0]}x3 matrix" in capsys.readouterr().err

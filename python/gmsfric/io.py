@@ -1,8 +1,11 @@
-"""Reading measurement files (CSV with a header row, or MATLAB .mat v5 via scipy) and writing
-outputs atomically.
+"""Reading measurement files (CSV with a header row, or MATLAB .mat) and writing outputs
+atomically.
 
 Columns are always named explicitly by the caller (``--time t --position qm``); nothing is
-guessed.  Problems raise :class:`~gmsfric.errors.DataError` naming the file and the column.
+guessed.  In a .mat file a struct's fields are named as in MATLAB (``log.q``, nested
+``log.joint3.tau``) and a matrix's columns likewise (``q(:,3)``; a matrix with more columns than
+rows holds its signals in rows, ``q(3,:)``).  Files saved with ``-v7`` or older are read by
+scipy, ``-v7.3`` (HDF5) files with h5py when it is installed.  Problems raise :class:`~gmsfric.errors.DataError` naming the file and the column.
 Every output file is written to a temporary file in its directory and renamed over the target
 (:func:`write_text_atomic`, :func:`atomic_path`), so a crash or Ctrl-C never leaves half a file.
 """
@@ -32,13 +35,20 @@ class Table:
     source: str
     columns: dict[str, NDArray[np.float64]]
     scalars: dict[str, float] = field(default_factory=dict)
+    #: Shapes of the matrices of a .mat file, whose columns (or rows) are in ``columns``.
+    matrices: dict[str, tuple[int, int]] = field(default_factory=dict)
 
     def column(self, name: str, role: str = "column") -> NDArray[np.float64]:
         """The column ``name`` (raises ``DataError`` listing the available ones)."""
-        if name not in self.columns:
+        key = name if name in self.columns else "".join(name.split())  # ``q(:, 3)`` as ``q(:,3)``
+        if key not in self.columns:
+            if key in self.matrices:
+                rows, cols = self.matrices[key]
+                example = f"{key}(:,1)" if rows >= cols else f"{key}(1,:)"
+                raise DataError(f"{self.source}: {role} {name!r} is a {rows}x{cols} matrix; name one of its signals, e.g. {example}")
             avail = ", ".join(sorted(self.columns)) or "none"
             raise DataError(f"{self.source}: unknown {role} column {name!r}; available columns: {avail}")
-        return self.columns[name]
+        return self.columns[key]
 
     def number(self, spec: str | float, role: str = "gain") -> float:
         """A number given literally or as the name of a scalar (or constant column) in the file."""
@@ -138,22 +148,91 @@ def _read_mat(path: Path) -> Table:
     from scipy.io import loadmat
 
     try:
-        raw = loadmat(str(path))
+        raw = loadmat(str(path), simplify_cells=True)
+    except NotImplementedError:  # scipy's answer to a -v7.3 (HDF5) file
+        return _read_mat73(path)
     except Exception as exc:  # scipy raises several types for corrupt files
         raise DataError(f"{path}: cannot read as a MATLAB file: {exc}") from None
-    columns: dict[str, NDArray[np.float64]] = {}
-    scalars: dict[str, float] = {}
+    table = Table(str(path), {})
+    skipped: list[str] = []
     for key, value in raw.items():
-        if key.startswith("__") or not isinstance(value, np.ndarray) or value.dtype.kind not in "fiub":
-            continue
-        arr = np.asarray(value, dtype=float).squeeze()
-        if arr.ndim == 0 or arr.size == 1:
-            scalars[key] = float(arr.reshape(-1)[0])
-        elif arr.ndim == 1:
-            columns[key] = np.ascontiguousarray(arr)
-    if not columns:
-        raise DataError(f"{path}: no numeric vectors in the file")
-    return Table(str(path), columns, scalars)
+        if not key.startswith("__"):
+            _add_mat_value(table, key, value, skipped)
+    return _checked_mat(table, skipped)
+
+
+def _add_mat_value(table: Table, name: str, value: object, skipped: list[str]) -> None:
+    """Add a MATLAB variable (as scipy's ``simplify_cells`` gives it) to ``table``: a struct
+    field by field, a real number as a scalar, a vector as a column, a matrix signal by signal.
+    What holds no real numbers (text, cells, struct arrays, objects such as a ``timeseries``,
+    complex values) is named in ``skipped``."""
+    if isinstance(value, dict):
+        for key, field_value in value.items():
+            _add_mat_value(table, f"{name}.{key}", field_value, skipped)
+        return
+    if isinstance(value, (bool, int, float, np.bool_, np.integer, np.floating)):
+        table.scalars[name] = float(value)
+        return
+    if not isinstance(value, np.ndarray) or value.dtype.kind not in "fiub" or value.size == 0:
+        skipped.append(name)
+        return
+    arr = np.asarray(value, dtype=float).squeeze()
+    if arr.size == 1:
+        table.scalars[name] = float(arr.reshape(-1)[0])
+    elif arr.ndim == 1:
+        table.columns[name] = np.ascontiguousarray(arr)
+    elif arr.ndim == 2:
+        rows, cols = arr.shape
+        table.matrices[name] = (rows, cols)
+        if rows >= cols:  # signals in columns, the usual layout of a log
+            for j in range(cols):
+                table.columns[f"{name}(:,{j + 1})"] = np.ascontiguousarray(arr[:, j])
+        else:
+            for i in range(rows):
+                table.columns[f"{name}({i + 1},:)"] = np.ascontiguousarray(arr[i, :])
+    else:
+        skipped.append(name)
+
+
+def _read_mat73(path: Path) -> Table:
+    """A MATLAB ``-v7.3`` file (HDF5): groups are structs, datasets arrays (stored transposed:
+    MATLAB writes column-major)."""
+    try:
+        import h5py
+    except ImportError:
+        raise DataError(f"{path}: a MATLAB -v7.3 (HDF5) file; install h5py (pip install h5py) to read it, "
+                        "or save it in MATLAB with save(..., '-v7')") from None
+    table = Table(str(path), {})
+    skipped: list[str] = []
+
+    def visit(group: "h5py.Group", prefix: str) -> None:
+        for key, item in group.items():
+            if key.startswith("#"):  # MATLAB's store of cell contents and object references
+                continue
+            name = f"{prefix}.{key}" if prefix else key
+            if isinstance(item, h5py.Group):
+                visit(item, name)
+                continue
+            kind = item.attrs.get("MATLAB_class", b"double")
+            kind = kind.decode() if isinstance(kind, bytes) else str(kind)
+            if kind in ("char", "cell") or item.attrs.get("MATLAB_empty", 0):
+                skipped.append(name)
+                continue
+            _add_mat_value(table, name, np.asarray(item[()]).T, skipped)
+
+    try:
+        with h5py.File(path, "r") as fh:
+            visit(fh, "")
+    except (OSError, ValueError) as exc:
+        raise DataError(f"{path}: cannot read as a MATLAB -v7.3 file: {exc}") from None
+    return _checked_mat(table, skipped)
+
+
+def _checked_mat(table: Table, skipped: list[str]) -> Table:
+    if not table.columns:
+        hint = f" (not read: {', '.join(skipped[:8])}; text, cells, objects such as a timeseries and complex values are not signals)" if skipped else ""
+        raise DataError(f"{table.source}: no numeric vectors in the file{hint}")
+    return table
 
 
 def read_table(path: str | Path) -> Table:

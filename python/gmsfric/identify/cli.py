@@ -37,7 +37,7 @@ def _as_flags() -> Iterator[None]:
 
 
 def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", metavar="FILE", help="CSV with a header row, or MATLAB .mat")
+    p.add_argument("file", metavar="FILE", help="CSV with a header row, or MATLAB .mat (a struct field as log.q, a matrix column as q(:,3))")
     p.add_argument("--json", metavar="OUT", help="write the parameters with standard errors, and the SI model document, as JSON ('-' = stdout, "
                    "the table then goes to stderr)")
     p.add_argument("--plot", metavar="DIR", help="save the figures (PNG) in DIR")

@@ -32,7 +32,7 @@ def register(subparsers: Any) -> None:
         description="Fit the EMPS-style inverse model, trace the residual to missing effects and add them one at a time "
         "while held-out data confirm it.  Units: time s, position m, force N (see --*-unit).",
     )
-    p.add_argument("est", metavar="EST", help="estimation run (.csv with a header row, or .mat)")
+    p.add_argument("est", metavar="EST", help="estimation run (.csv with a header row, or .mat: name a struct field as log.q, a matrix column as q(:,3))")
     p.add_argument("--validate", metavar="VAL", help="validation run; without it, part of EST is held out")
     p.add_argument("--time", required=True, metavar="COL")
     p.add_argument("--position", required=True, metavar="COL")
