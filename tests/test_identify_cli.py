@@ -90,7 +90,7 @@ def test_plant_cli(tmp_path):
     [
         ("t,x,F\n0,0,0\n", ["--time", "t", "--position", "nope", "--force", "F"], "unknown position column 'nope'"),
         ("", ["--time", "t", "--position", "x", "--force", "F"], "empty"),
-        ("t,x,F\n0,a,0\n1,2,3\n", ["--time", "t", "--position", "x", "--force", "F"], "non-numeric"),
+        ("t,x,F\n0,a,0\n1,2,3\n", ["--time", "t", "--position", "x", "--force", "F"], "data row 1, column 'x': 'a' is not a number"),
     ],
 )
 def test_bad_files_give_clear_errors(tmp_path, capsys, content, args, message):

@@ -32,7 +32,7 @@ def test_reads_csv_and_mat(tmp_path):
         ("time,pos\n" + "\n".join(f"{i},{i}" for i in range(20)), {"time": "time", "position": "qm"}, "unknown position column 'qm'; available columns: pos, time"),
         ("", {"time": "time"}, "file is empty"),
         ("time,pos\n", {"time": "time"}, "no data rows"),
-        ("time,pos\n1,abc\n2,3\n", {"time": "time"}, "non-numeric value"),
+        ("time,pos\n1,abc\n2,3\n", {"time": "time"}, "data row 1, column 'pos': 'abc' is not a number"),
         ("time,pos\n" + "\n".join(f"{i},{i}" for i in range(5)), {"time": "time", "position": "pos"}, "too few samples"),
         ("time,pos\n" + "\n".join(f"{i % 7},{i}" for i in range(20)), {"time": "time", "position": "pos"}, "not strictly increasing at row 7"),
         ("time,pos\n" + "\n".join(f"{i},{'nan' if i == 4 else i}" for i in range(20)), {"time": "time", "position": "pos"}, "non-finite value at row 4"),
@@ -136,3 +136,48 @@ def test_mat_v73_without_h5py_says_how_to_read_it(tmp_path, monkeypatch):
     monkeypatch.setitem(__import__("sys").modules, "h5py", None)  # import h5py now fails
     with pytest.raises(DataError, match=r"MATLAB -v7.3 \(HDF5\) file; install h5py .* '-v7'"):
         read_table(tmp_path / "v73.mat")
+
+
+def _rows(n=30):
+    return "\n".join(f"{i * 1e-3},{0.5 * i},{2.0 - i}" for i in range(n))
+
+
+def test_csv_preamble_comments_and_a_decimal_comma_are_read(tmp_path):
+    plain = load_columns(_csv(tmp_path / "a.csv", "t,q,f\n" + _rows()), {"time": "t", "position": "q", "force": "f"})
+    commented = _csv(tmp_path / "b.csv", "# rig 3, joint 2\n% logged at 1 kHz\nt,q,f\n" + _rows())
+    semicolons = _csv(tmp_path / "c.csv", "t;q;f\n" + _rows().replace(",", ";").replace(".", ","))
+    for path in (commented, semicolons):
+        cols = load_columns(path, {"time": "t", "position": "q", "force": "f"})
+        for role in plain:
+            np.testing.assert_allclose(cols[role], plain[role], rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("content, match", [
+    ("0.0,1.0,2.0\n" + _rows(), r"first row holds numbers, not column names; add a header row"),
+    ("t,q,f\n" + _rows(5) + "\n0.006,,1\n" + _rows(5), r"data row 6, column 'q': empty"),
+    ("t,q,f\n" + _rows(5) + "\n0.006,n/a,1\n", r"data row 6, column 'q': 'n/a' is not a number"),
+    ("t,q,f\n" + _rows(5) + "\n0.006,1\n", r"data row 6 has 2 fields, the header 3"),
+])
+def test_csv_faults_name_the_column_and_row(tmp_path, content, match):
+    with pytest.raises(DataError, match=match):
+        read_table(_csv(tmp_path / "d.csv", content))
+
+
+@pytest.mark.parametrize("units_row", ["s,mm,N", "[s],[mm],[N]", "(s),(mm),(N)"])
+def test_a_units_row_must_agree_with_the_declared_units(tmp_path, units_row):
+    path = _csv(tmp_path / "u.csv", f"t,q,f\n{units_row}\n" + _rows())
+    mapping = {"time": "t", "position": "q", "force": "f"}
+    declared = {"time": ("s", "time", "time_unit"), "force": ("N", "force", "force_unit")}
+    cols = load_columns(path, mapping, declared_units={**declared, "position": ("mm", "position", "position_unit")})
+    np.testing.assert_allclose(cols["position"], 0.5 * np.arange(30))  # the units row is not data
+    with pytest.raises(DataError, match=r"column 'q' is in mm by the file's units row, but `position_unit` is 'm' "
+                                        r"\(the values would be off by a factor 0.001\); declare it as mm"):
+        load_columns(path, mapping, declared_units={**declared, "position": ("m", "position", "position_unit")})
+
+
+def test_a_units_row_gmsfric_cannot_read_is_refused_and_a_blank_unit_is_not_checked(tmp_path):
+    path = _csv(tmp_path / "u.csv", "t,q,f\ns,counts,-\n" + _rows())
+    declared = {"position": ("m", "position", "position_unit"), "force": ("kN", "force", "force_unit")}
+    with pytest.raises(DataError, match=r"column 'q' is labelled 'counts' in the file's units row, a unit gmsfric cannot read"):
+        load_columns(path, {"time": "t", "position": "q"}, declared_units=declared)
+    assert load_columns(path, {"time": "t", "force": "f"}, declared_units=declared)["force"].size == 30

@@ -123,3 +123,14 @@ def test_cli_reads_a_matlab_log_of_several_axes_as_the_same_run(rig_csv, tmp_pat
     capsys.readouterr()
     assert main(["loop", str(tmp_path / "log.mat"), "--time", "log.t", "--position", "log.x", "--command", "log.u(:,2)", "--gain", "log.kt", "--quiet"]) == 2
     assert f"'log.x' is a {raw.shape[0]}x3 matrix" in capsys.readouterr().err
+
+
+def test_cli_refuses_a_unit_the_files_units_row_contradicts(rig_csv, tmp_path, capsys):
+    path, gain = rig_csv
+    lines = path.read_text().splitlines()
+    labelled = tmp_path / "labelled.csv"
+    labelled.write_text("\n".join([lines[0], "ms,mm,V,mm", *lines[1:]]) + "\n")
+    argv = ["loop", str(labelled), "--time", "t_ms", "--time-unit", "ms", "--position", "x_mm", "--command", "u", "--gain", str(gain), "--quiet"]
+    assert main(argv) == 2  # --position-unit left at its default, m
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "column 'x_mm' is in mm by the file's units row, but --position-unit is 'm'" in err[0]

@@ -24,6 +24,7 @@ Argument types (:func:`positive_int`, :func:`fraction`, ...) refuse bad numbers 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import importlib
 import logging
@@ -35,9 +36,9 @@ import tempfile
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, Sequence
 
-from .errors import DataError, GmsfricError, IdentificationError
+from .errors import DataError, GmsfricError, IdentificationError, InvalidInputError
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -151,6 +152,25 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # type: ignore[override]
         raise UsageError(self.prog, message)
+
+
+#: Unit arguments of the Python API, named on the command line by their flags.
+UNIT_ARGS = ("time_unit", "position_unit", "force_unit", "velocity_unit", "input_unit", "output_unit", "force_gain_unit")
+
+
+@contextlib.contextmanager
+def units_as_flags() -> Iterator[None]:
+    """Errors of the Python API name its unit arguments (`` `force_unit` ``); on the command
+    line they name the flags (``--force-unit``)."""
+    try:
+        yield
+    except InvalidInputError as exc:
+        text = str(exc)
+        for name in UNIT_ARGS:
+            text = text.replace(f"`{name}`", "--" + name.replace("_", "-"))
+        if text == str(exc):
+            raise
+        raise type(exc)(text) from None
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ from typing import Iterator, Mapping
 import numpy as np
 from numpy.typing import NDArray
 
+from . import units as units_module
 from ._validate import within_fit_range
 from .errors import DataError, OutputPathError
 
@@ -37,6 +38,26 @@ class Table:
     scalars: dict[str, float] = field(default_factory=dict)
     #: Shapes of the matrices of a .mat file, whose columns (or rows) are in ``columns``.
     matrices: dict[str, tuple[int, int]] = field(default_factory=dict)
+    #: Units a CSV file gives for its columns in a row under the header (``s,mm,N``).
+    units: dict[str, str] = field(default_factory=dict)
+
+    def check_unit(self, name: str, declared: str, quantity: str, argument: str) -> None:
+        """Refuse a column whose unit in the file differs from the one the caller declared for
+        it: the values would be converted by the wrong factor (a 1000 in mm for m)."""
+        written = self.units.get(name, "")
+        if written in ("", "-"):
+            return
+        try:
+            in_file = units_module.parse(written)
+        except units_module.UnitError:
+            raise DataError(f"{self.source}: column {name!r} is labelled {written!r} in the file's units row, a unit gmsfric "
+                            f"cannot read; convert the column to a unit it reads or correct the label") from None
+        given = units_module.check(declared, quantity, name=argument)
+        same = in_file.dim == given.dim and abs(in_file.factor - given.factor) <= 1e-12 * abs(given.factor)
+        if not same:
+            scale = f" (the values would be off by a factor {in_file.factor / given.factor:.6g})" if in_file.dim == given.dim else ""
+            raise DataError(f"{self.source}: column {name!r} is in {written} by the file's units row, but `{argument}` is "
+                            f"{declared!r}{scale}; declare it as {written}")
 
     def column(self, name: str, role: str = "column") -> NDArray[np.float64]:
         """The column ``name`` (raises ``DataError`` listing the available ones)."""
@@ -115,33 +136,57 @@ def check_input_file(path: str | Path, *, role: str = "file") -> Path:
     return p
 
 
+#: A line whose first field starts with one of these is a comment (a logger's preamble).
+COMMENT_PREFIXES = ("#", "%")
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
+
+
 def _read_csv(path: Path) -> Table:
     try:
         with path.open(newline="", encoding="utf-8-sig") as fh:
-            sample = fh.read(4096)
-            fh.seek(0)
-            try:
-                dialect = csv.Sniffer().sniff(sample, delimiters=",;\t ")
-            except csv.Error:
-                dialect = csv.excel  # type: ignore[assignment]
-            rows = list(csv.reader(fh, dialect))
+            lines = [line for line in fh if line.strip() and not line.lstrip().startswith(COMMENT_PREFIXES)]
     except UnicodeDecodeError as exc:
         raise DataError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
+    if not lines:
+        raise DataError(f"{path}: file is empty")
+    try:
+        try:
+            dialect = csv.Sniffer().sniff("".join(lines[:50]), delimiters=",;\t ")
+        except csv.Error:
+            dialect = csv.excel  # type: ignore[assignment]
+        rows = [r for r in csv.reader(lines, dialect) if any(cell.strip() for cell in r)]
     except csv.Error as exc:
         raise DataError(f"{path}: cannot read as CSV: {exc}") from None
-    rows = [r for r in rows if any(cell.strip() for cell in r)]
-    if not rows:
-        raise DataError(f"{path}: file is empty")
     header = [h.strip() for h in rows[0]]
-    if len(rows) < 2:
+    if all(_is_number(h) for h in header):
+        raise DataError(f"{path}: the first row holds numbers, not column names; add a header row naming the columns (e.g. t,q,f)")
+    body = rows[1:]
+    table = Table(str(path), {})
+    if body and not any(_is_number(c) or _is_number(c.replace(",", ".")) for c in body[0]) and len(body[0]) == len(header):
+        # a row of units under the header (``s,mm,N`` or ``[s],[mm],[N]``): checked against the declared units
+        table.units = {h: c.strip().strip("[]()").strip() for h, c in zip(header, body[0])}
+        body = body[1:]
+    if not body:
         raise DataError(f"{path}: no data rows under the header")
+    if any(len(r) != len(header) for r in body):
+        i = next(i for i, r in enumerate(body) if len(r) != len(header))
+        raise DataError(f"{path}: data row {i + 1} has {len(body[i])} fields, the header {len(header)}")
+    decimal_comma = getattr(dialect, "delimiter", ",") != "," and any("," in c and not _is_number(c) for c in body[0])
     try:
-        data = np.array([[float(c) for c in r] for r in rows[1:]], dtype=float)
-    except ValueError as exc:
-        raise DataError(f"{path}: non-numeric value in the data rows ({exc}); is the first row a header?") from None
-    if data.ndim != 2 or data.shape[1] != len(header):
-        raise DataError(f"{path}: rows do not all have {len(header)} fields like the header")
-    return Table(str(path), {h: np.ascontiguousarray(data[:, i]) for i, h in enumerate(header)})
+        data = np.array([[float(c.replace(",", ".")) if decimal_comma else float(c) for c in r] for r in body], dtype=float)
+    except ValueError:
+        i, j = next((i, j) for i, r in enumerate(body) for j, c in enumerate(r) if not _is_number(c.replace(",", ".") if decimal_comma else c))
+        what = "empty" if not body[i][j].strip() else f"{body[i][j].strip()!r} is not a number"
+        raise DataError(f"{path}: data row {i + 1}, column {header[j]!r}: {what}") from None
+    table.columns = {h: np.ascontiguousarray(data[:, i]) for i, h in enumerate(header)}
+    return table
 
 
 def _read_mat(path: Path) -> Table:
@@ -242,15 +287,20 @@ def read_table(path: str | Path) -> Table:
 
 
 def load_columns(path: str | Path | Table, mapping: Mapping[str, str], *, min_samples: int = 10,
-                 repeated_time: bool = False) -> dict[str, NDArray[np.float64]]:
+                 repeated_time: bool = False, declared_units: Mapping[str, tuple[str, str, str]] | None = None) -> dict[str, NDArray[np.float64]]:
     """Columns by role, e.g. ``load_columns(f, {"time": "t", "position": "qm"})``.
 
     Checks that every column exists, all have the same length, there are at least
     ``min_samples`` rows, values are finite, and a ``time`` role increases strictly (never
     decreases, with ``repeated_time``: for a caller that merges samples logged under one stamp).
+    ``declared_units`` maps a role to ``(unit, quantity, argument)``, the unit the caller was
+    given for it: a file that states another unit for that column (a units row) is refused.
     """
     table = path if isinstance(path, Table) else read_table(path)
     out = {role: table.column(name, role) for role, name in mapping.items()}
+    for role, (unit, quantity, argument) in (declared_units or {}).items():
+        if role in mapping:
+            table.check_unit(mapping[role], unit, quantity, argument)
     lengths = {role: a.size for role, a in out.items()}
     if len(set(lengths.values())) > 1:
         raise DataError(f"{table.source}: columns have different lengths: {lengths}")

@@ -4,36 +4,19 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import sys
 import warnings
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .. import units as _units
-from ..cli import Run, declare_files, int_at_least, non_negative_float, non_negative_int, positive_float, positive_int, positive_or_inf
+from ..cli import Run, declare_files, units_as_flags, int_at_least, non_negative_float, non_negative_int, positive_float, positive_int, positive_or_inf
 from ..errors import DataError, FitWarning
 from ..io import Table, load_columns, read_table
 from .diagnostics import format_block
 from .results import IdentificationResult
-
-
-_UNIT_ARGS = ("time_unit", "position_unit", "force_unit", "velocity_unit", "input_unit", "output_unit", "force_gain_unit")
-
-
-@contextlib.contextmanager
-def _as_flags() -> Iterator[None]:
-    """Unit errors of the Python API name its arguments (``force_unit``); on the command line
-    they name the flags (``--force-unit``)."""
-    try:
-        yield
-    except _units.UnitError as exc:
-        text = str(exc)
-        for name in _UNIT_ARGS:
-            text = text.replace(f"`{name}`", "--" + name.replace("_", "-"))
-        raise _units.UnitError(text) from None
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -172,7 +155,8 @@ def _static_map(args: argparse.Namespace, run: Run) -> int:
         units = {"time": args.time_unit, "force": args.force_unit, "position": pos_unit, "velocity": vel_unit}
         table = read_table(args.file)
         columns = {"time": args.time, "position": args.position, **force_col}
-        cols = load_columns(table, columns, min_samples=50)
+        with units_as_flags():
+            cols = load_columns(table, columns, min_samples=50, declared_units=_declared(units, "time", "position", "force"))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FitWarning)
             res = fit_static_map_from_run(cols["time"], cols["position"], _forces(args, table, cols), per_direction=args.per_direction,
@@ -182,12 +166,13 @@ def _static_map(args: argparse.Namespace, run: Run) -> int:
         vel_unit = args.velocity_unit or "m/s"
         rotary = _units.is_rotary(vel_unit, "velocity", name="--velocity-unit")
         _units.check(args.force_unit, "force", rotary=rotary, name="--force-unit")
-        with _as_flags():
+        with units_as_flags():
             static_map_units(vel_unit, args.force_unit)
         units = {"velocity": vel_unit, "force": args.force_unit}
         table = read_table(args.file)
         columns = {"velocity": args.velocity, **force_col}
-        cols = load_columns(table, columns, min_samples=2)
+        with units_as_flags():
+            cols = load_columns(table, columns, min_samples=2, declared_units=_declared(units, "velocity", "force"))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FitWarning)
             res = fit_static_map(cols["velocity"], _forces(args, table, cols), per_direction=args.per_direction, bootstrap=args.bootstrap,
@@ -195,15 +180,23 @@ def _static_map(args: argparse.Namespace, run: Run) -> int:
     return _finish(res, args, run, columns, units, gain=args.gain)
 
 
+def _declared(units: dict[str, str], *roles: str) -> dict[str, tuple[str, str, str]]:
+    """The units the flags declare for ``roles``, as ``load_columns`` checks them against a file's
+    units row: role -> (unit, quantity, argument)."""
+    return {role: (units[role], role, f"{role}_unit") for role in roles}
+
+
 def _presliding(args: argparse.Namespace, run: Run) -> int:
     from .presliding import fit_presliding, presliding_units
 
     _check_force_source(args)
-    with _as_flags():
+    with units_as_flags():
         presliding_units(args.position_unit, args.force_unit, args.time_unit)
     table = read_table(args.file)
     columns = {"time": args.time, "position": args.position, **({"force": args.force} if args.command_col is None else {"command": args.command_col})}
-    cols = load_columns(table, columns, min_samples=50)
+    declared = {"time": args.time_unit, "position": args.position_unit, "force": args.force_unit}
+    with units_as_flags():
+        cols = load_columns(table, columns, min_samples=50, declared_units=_declared(declared, "time", "position", "force"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)
         res = fit_presliding(cols["time"], cols["position"], _forces(args, table, cols), n_blocks=args.blocks, max_blocks=args.max_blocks,
@@ -215,7 +208,7 @@ def _presliding(args: argparse.Namespace, run: Run) -> int:
 def _plant(args: argparse.Namespace, run: Run) -> int:
     from .frf import estimate_frf, fit_plant, plant_units
 
-    with _as_flags():
+    with units_as_flags():
         _, fg_unit = plant_units(args.time_unit, args.input_unit, args.output_unit, args.force_gain_unit)
     if args.fmin >= args.fmax:
         raise DataError(f"--fmin {args.fmin:g} must be below --fmax {args.fmax:g}")

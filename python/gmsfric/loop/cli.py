@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import units as _units
-from ..cli import Run, declare_files, fraction, positive_float
+from ..cli import Run, declare_files, fraction, positive_float, units_as_flags
 from ..errors import DataError, FitWarning
 from ..identify.diagnostics import emit, format_block
 from ..io import read_table
@@ -115,10 +115,9 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
     common = dict(time=args.time, position=args.position, force=args.force, command=args.command_col, gain=args.gain,
                   reference=args.reference, time_unit=args.time_unit, position_unit=args.position_unit, force_unit=args.force_unit)
     est_table = read_table(args.est)
-    est = load_axis_data(est_table, **common)
-    val = None
-    if args.validate:
-        val = load_axis_data(args.validate, disturbance=args.disturbance, **common)
+    with units_as_flags():
+        est = load_axis_data(est_table, **common)
+        val = None if args.validate is None else load_axis_data(args.validate, disturbance=args.disturbance, **common)
     base = ("inertia", "viscous", "coulomb", "offset") if args.baseline == "reference" else ("inertia", "viscous", "coulomb")
     cfg = LoopConfig(preprocessing=Preprocessing(cutoff_hz=args.cutoff_hz), holdout_fraction=holdout, baseline=base, progress=run.progress)
     with warnings.catch_warnings():

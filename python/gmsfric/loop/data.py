@@ -263,7 +263,11 @@ def load_axis_data(
         mapping["reference"] = reference
     if disturbance is not None:
         mapping["disturbance"] = disturbance
-    cols = load_columns(table, mapping, min_samples=MIN_SAMPLES, repeated_time=True)
+    declared = {"time": (time_unit, "time", "time_unit"), "position": (position_unit, "position", "position_unit"),
+                "reference": (position_unit, "position", "position_unit")}
+    if force is not None:
+        declared.update(force=(force_unit, "force", "force_unit"), disturbance=(force_unit, "force", "force_unit"))
+    cols = load_columns(table, mapping, min_samples=MIN_SAMPLES, repeated_time=True, declared_units=declared)
     g = None
     if command is not None:
         g = table.number(gain, role="gain")  # type: ignore[arg-type]
