@@ -181,3 +181,13 @@ def test_a_units_row_gmsfric_cannot_read_is_refused_and_a_blank_unit_is_not_chec
     with pytest.raises(DataError, match=r"column 'q' is labelled 'counts' in the file's units row, a unit gmsfric cannot read"):
         load_columns(path, {"time": "t", "position": "q"}, declared_units=declared)
     assert load_columns(path, {"time": "t", "force": "f"}, declared_units=declared)["force"].size == 30
+
+
+def test_a_commented_header_right_above_the_data_names_the_columns(tmp_path):
+    t = np.arange(30) * 1e-3
+    np.savetxt(tmp_path / "np.csv", np.column_stack([t, t**2]), delimiter=",", header="t,q")  # writes "# t,q"
+    (tmp_path / "ros.csv").write_text("%time,field.position0\n" + "\n".join(f"{1732800000000000000 + i * 10**7},{0.1 * i}" for i in range(30)))
+    (tmp_path / "notes.csv").write_text("# a note\nt,q\n# a remark inside the data\n" + "\n".join(f"{a},{a * a}" for a in t))
+    np.testing.assert_allclose(read_table(tmp_path / "np.csv").column("q"), t**2)
+    np.testing.assert_allclose(np.diff(read_table(tmp_path / "ros.csv").column("time")), 1e7, rtol=1e-4)  # ns since 1970 in doubles: 256 ns steps
+    np.testing.assert_allclose(read_table(tmp_path / "notes.csv").column("q"), t**2)

@@ -151,9 +151,19 @@ def _is_number(cell: str) -> bool:
 def _read_csv(path: Path) -> Table:
     try:
         with path.open(newline="", encoding="utf-8-sig") as fh:
-            lines = [line for line in fh if line.strip() and not line.lstrip().startswith(COMMENT_PREFIXES)]
+            lines = [line for line in fh if line.strip()]
     except UnicodeDecodeError as exc:
         raise DataError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
+    preamble = 0
+    while preamble < len(lines) and lines[preamble].lstrip().startswith(COMMENT_PREFIXES):
+        preamble += 1
+    # The last comment line is the header when the data follow it directly: numpy's savetxt
+    # writes "# t,q,f", a ROS bag exported to CSV "%time,field.position"
+    named = preamble > 0 and preamble < len(lines) and not all(_is_number(c) for c in lines[preamble - 1].lstrip()[1:].replace(";", ",").split(","))
+    if named and all(_is_number(c) for c in lines[preamble].replace(";", ",").replace("\t", ",").split(",") if c.strip()):
+        lines[preamble - 1] = lines[preamble - 1].lstrip()[1:].lstrip()
+        preamble -= 1
+    lines = [line for line in lines[preamble:] if not line.lstrip().startswith(COMMENT_PREFIXES)]
     if not lines:
         raise DataError(f"{path}: file is empty")
     try:
