@@ -188,6 +188,8 @@ def test_a_commented_header_right_above_the_data_names_the_columns(tmp_path):
     np.savetxt(tmp_path / "np.csv", np.column_stack([t, t**2]), delimiter=",", header="t,q")  # writes "# t,q"
     (tmp_path / "ros.csv").write_text("%time,field.position0\n" + "\n".join(f"{1732800000000000000 + i * 10**7},{0.1 * i}" for i in range(30)))
     (tmp_path / "notes.csv").write_text("# a note\nt,q\n# a remark inside the data\n" + "\n".join(f"{a},{a * a}" for a in t))
+    (tmp_path / "matlab.csv").write_text("t,q\n" + "\n".join(f"{a},{a * a}" for a in t[:10]) + "\n% paused\n" + "\n".join(f"{a},{a * a}" for a in t[10:]))
+    np.testing.assert_array_equal(read_table(tmp_path / "matlab.csv").column("q"), t**2)
     np.testing.assert_allclose(read_table(tmp_path / "np.csv").column("q"), t**2)
     np.testing.assert_allclose(np.diff(read_table(tmp_path / "ros.csv").column("time")), 1e7, rtol=1e-4)  # ns since 1970 in doubles: 256 ns steps
     np.testing.assert_allclose(read_table(tmp_path / "notes.csv").column("q"), t**2)

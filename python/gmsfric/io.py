@@ -14,9 +14,12 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import itertools
 import os
+import re
 import stat
 import tempfile
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator, Mapping
@@ -148,55 +151,103 @@ def _is_number(cell: str) -> bool:
     return True
 
 
+#: Lines read to find a CSV's layout (preamble, header, units row, delimiter) before the data.
+CSV_LAYOUT_LINES = 2000
+
+
+@dataclass
+class _CsvLayout:
+    header: list[str]
+    units: dict[str, str]
+    data_start: int  # index of the first data line among the file's lines
+    dialect: type[csv.Dialect] | csv.Dialect
+    decimal_comma: bool
+
+
+def _csv_layout(path: Path, lines: list[str]) -> _CsvLayout:
+    """Where a CSV's header, units row and data are, from its first ``lines``."""
+    content = [i for i, line in enumerate(lines) if line.strip()]
+    k = 0
+    while k < len(content) and lines[content[k]].lstrip().startswith(COMMENT_PREFIXES):
+        k += 1
+    if k == len(content):
+        raise DataError(f"{path}: file is empty" if not content else f"{path}: no data in the first {len(lines)} lines, only comments")
+    # The last comment line is the header when the data follow it directly: numpy's savetxt
+    # writes "# t,q,f", a ROS bag exported to CSV "%time,field.position"
+    header_text = lines[content[k]]
+    if k > 0 and all(_is_number(c) for c in re.split(r"[,;\t ]+", lines[content[k]].strip())):
+        header_text, k = lines[content[k - 1]].lstrip()[1:].lstrip(), k - 1
+    rest = [lines[i] for i in content[k + 1:] if not lines[i].lstrip().startswith(COMMENT_PREFIXES)][:50]
+    try:
+        dialect: type[csv.Dialect] | csv.Dialect = csv.Sniffer().sniff(header_text + "".join(rest), delimiters=",;\t ")
+    except csv.Error:
+        dialect = csv.excel
+    try:
+        header = [h.strip() for h in next(csv.reader([header_text], dialect))]
+        first = next(csv.reader(rest[:1], dialect), [])
+    except csv.Error as exc:
+        raise DataError(f"{path}: cannot read as CSV: {exc}") from None
+    if all(_is_number(h) for h in header):
+        raise DataError(f"{path}: the first row holds numbers, not column names; add a header row naming the columns (e.g. t,q,f)")
+    data_start = content[k] + 1
+    units: dict[str, str] = {}
+    if first and len(first) == len(header) and not any(_is_number(c) or _is_number(c.replace(",", ".")) for c in first):
+        # a row of units under the header (``s,mm,N`` or ``[s],[mm],[N]``): checked against the declared units
+        units = {h: c.strip().strip("[]()").strip() for h, c in zip(header, first)}
+        data_start = next(i for i in content if i > content[k] and not lines[i].lstrip().startswith(COMMENT_PREFIXES)) + 1
+    decimal_comma = dialect.delimiter != "," and any("," in c and not _is_number(c) for c in first)
+    return _CsvLayout(header, units, data_start, dialect, decimal_comma)
+
+
 def _read_csv(path: Path) -> Table:
     try:
         with path.open(newline="", encoding="utf-8-sig") as fh:
-            lines = [line for line in fh if line.strip()]
+            lines = list(itertools.islice(fh, CSV_LAYOUT_LINES))
+            layout = _csv_layout(path, lines)
     except UnicodeDecodeError as exc:
         raise DataError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
-    preamble = 0
-    while preamble < len(lines) and lines[preamble].lstrip().startswith(COMMENT_PREFIXES):
-        preamble += 1
-    # The last comment line is the header when the data follow it directly: numpy's savetxt
-    # writes "# t,q,f", a ROS bag exported to CSV "%time,field.position"
-    named = preamble > 0 and preamble < len(lines) and not all(_is_number(c) for c in lines[preamble - 1].lstrip()[1:].replace(";", ",").split(","))
-    if named and all(_is_number(c) for c in lines[preamble].replace(";", ",").replace("\t", ",").split(",") if c.strip()):
-        lines[preamble - 1] = lines[preamble - 1].lstrip()[1:].lstrip()
-        preamble -= 1
-    lines = [line for line in lines[preamble:] if not line.lstrip().startswith(COMMENT_PREFIXES)]
-    if not lines:
-        raise DataError(f"{path}: file is empty")
+    data = None if layout.decimal_comma else _loadtxt(path, layout)
+    if data is None:  # numpy's reader refused: read again slowly to say where and why
+        data = _parse_rows(path, layout)
+    if data.shape[0] == 0:
+        raise DataError(f"{path}: no data rows under the header")
+    return Table(str(path), {h: np.ascontiguousarray(data[:, i]) for i, h in enumerate(layout.header)}, units=layout.units)
+
+
+def _loadtxt(path: Path, layout: _CsvLayout) -> NDArray[np.float64] | None:
+    """The data block by numpy's C reader (a log of millions of rows in seconds), or ``None``
+    when it cannot read it as it is laid out."""
+    delimiter = None if layout.dialect.delimiter == " " else layout.dialect.delimiter
     try:
-        try:
-            dialect = csv.Sniffer().sniff("".join(lines[:50]), delimiters=",;\t ")
-        except csv.Error:
-            dialect = csv.excel  # type: ignore[assignment]
-        rows = [r for r in csv.reader(lines, dialect) if any(cell.strip() for cell in r)]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # numpy warns on a file without data rows
+            # one comment character, since numpy reads quoted fields only then ('%' lines go the slow way)
+            data = np.loadtxt(path, delimiter=delimiter, skiprows=layout.data_start, comments="#", ndmin=2,
+                              encoding="utf-8-sig", quotechar='"')
+    except ValueError:
+        return None
+    return data if data.shape[1] == len(layout.header) or data.size == 0 else None
+
+
+def _parse_rows(path: Path, layout: _CsvLayout) -> NDArray[np.float64]:
+    """The data block parsed row by row: decimal commas, and faults named by row and column."""
+    header = layout.header
+    with path.open(newline="", encoding="utf-8-sig") as fh:
+        lines = [line for line in itertools.islice(fh, layout.data_start, None) if line.strip() and not line.lstrip().startswith(COMMENT_PREFIXES)]
+    try:
+        body = [r for r in csv.reader(lines, layout.dialect) if any(cell.strip() for cell in r)]
     except csv.Error as exc:
         raise DataError(f"{path}: cannot read as CSV: {exc}") from None
-    header = [h.strip() for h in rows[0]]
-    if all(_is_number(h) for h in header):
-        raise DataError(f"{path}: the first row holds numbers, not column names; add a header row naming the columns (e.g. t,q,f)")
-    body = rows[1:]
-    table = Table(str(path), {})
-    if body and not any(_is_number(c) or _is_number(c.replace(",", ".")) for c in body[0]) and len(body[0]) == len(header):
-        # a row of units under the header (``s,mm,N`` or ``[s],[mm],[N]``): checked against the declared units
-        table.units = {h: c.strip().strip("[]()").strip() for h, c in zip(header, body[0])}
-        body = body[1:]
-    if not body:
-        raise DataError(f"{path}: no data rows under the header")
-    if any(len(r) != len(header) for r in body):
-        i = next(i for i, r in enumerate(body) if len(r) != len(header))
-        raise DataError(f"{path}: data row {i + 1} has {len(body[i])} fields, the header {len(header)}")
-    decimal_comma = getattr(dialect, "delimiter", ",") != "," and any("," in c and not _is_number(c) for c in body[0])
+    for i, r in enumerate(body):
+        if len(r) != len(header):
+            raise DataError(f"{path}: data row {i + 1} has {len(r)} fields, the header {len(header)}")
+    dot = (lambda c: c.replace(",", ".")) if layout.decimal_comma else (lambda c: c)
     try:
-        data = np.array([[float(c.replace(",", ".")) if decimal_comma else float(c) for c in r] for r in body], dtype=float)
+        return np.array([[float(dot(c)) for c in r] for r in body], dtype=float).reshape(len(body), len(header))
     except ValueError:
-        i, j = next((i, j) for i, r in enumerate(body) for j, c in enumerate(r) if not _is_number(c.replace(",", ".") if decimal_comma else c))
+        i, j = next((i, j) for i, r in enumerate(body) for j, c in enumerate(r) if not _is_number(dot(c)))
         what = "empty" if not body[i][j].strip() else f"{body[i][j].strip()!r} is not a number"
         raise DataError(f"{path}: data row {i + 1}, column {header[j]!r}: {what}") from None
-    table.columns = {h: np.ascontiguousarray(data[:, i]) for i, h in enumerate(header)}
-    return table
 
 
 def _read_mat(path: Path) -> Table:
