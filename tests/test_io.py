@@ -154,6 +154,7 @@ def test_csv_preamble_comments_and_a_decimal_comma_are_read(tmp_path):
 
 @pytest.mark.parametrize("content, match", [
     ("0.0,1.0,2.0\n" + _rows(), r"first row holds numbers, not column names; add a header row"),
+    ("# logged on rig 3\n" + _rows(), r"first row holds numbers, not column names"),  # a note is no header
     ("t,q,f\n" + _rows(5) + "\n0.006,,1\n" + _rows(5), r"data row 6, column 'q': empty"),
     ("t,q,f\n" + _rows(5) + "\n0.006,n/a,1\n", r"data row 6, column 'q': 'n/a' is not a number"),
     ("t,q,f\n" + _rows(5) + "\n0.006,1\n", r"data row 6 has 2 fields, the header 3"),

@@ -5,7 +5,9 @@ Columns are always named explicitly by the caller (``--time t --position qm``); 
 guessed.  In a .mat file a struct's fields are named as in MATLAB (``log.q``, nested
 ``log.joint3.tau``) and a matrix's columns likewise (``q(:,3)``; a matrix with more columns than
 rows holds its signals in rows, ``q(3,:)``).  Files saved with ``-v7`` or older are read by
-scipy, ``-v7.3`` (HDF5) files with h5py when it is installed.  Problems raise :class:`~gmsfric.errors.DataError` naming the file and the column.
+scipy, ``-v7.3`` (HDF5) files with h5py when it is installed.  A CSV's units row, if any, is
+checked against the units the caller declares (:meth:`Table.check_unit`).  Problems raise
+:class:`~gmsfric.errors.DataError` naming the file and the column.
 Every output file is written to a temporary file in its directory and renamed over the target
 (:func:`write_text_atomic`, :func:`atomic_path`), so a crash or Ctrl-C never leaves half a file.
 """
@@ -175,8 +177,10 @@ def _csv_layout(path: Path, lines: list[str]) -> _CsvLayout:
     # The last comment line is the header when the data follow it directly: numpy's savetxt
     # writes "# t,q,f", a ROS bag exported to CSV "%time,field.position"
     header_text = lines[content[k]]
-    if k > 0 and all(_is_number(c) for c in re.split(r"[,;\t ]+", lines[content[k]].strip())):
-        header_text, k = lines[content[k - 1]].lstrip()[1:].lstrip(), k - 1
+    fields = re.split(r"[,;\t ]+", header_text.strip())
+    named = lines[content[k - 1]].lstrip()[1:].strip() if k > 0 else ""
+    if all(_is_number(c) for c in fields) and len(re.split(r"[,;\t ]+", named)) == len(fields):
+        header_text, k = named + "\n", k - 1
     rest = [lines[i] for i in content[k + 1:] if not lines[i].lstrip().startswith(COMMENT_PREFIXES)][:50]
     try:
         dialect: type[csv.Dialect] | csv.Dialect = csv.Sniffer().sniff(header_text + "".join(rest), delimiters=",;\t ")
