@@ -206,3 +206,16 @@ def test_unit_errors_name_the_flags_not_python_arguments(tmp_path, capsys, argv,
     assert main(["identify", *[a.format(f=f) for a in argv]]) == 2
     err = capsys.readouterr().err
     assert flag in err and "_unit`" not in err and "`" + flag.strip("-").replace("-", "_") not in err
+
+
+@pytest.mark.parametrize("argv, units_row, message", [
+    (["static-map", "--time", "t", "--position", "x", "--force", "F"], "s,mm,N", "column 'x' is in mm by the file's units row, but --position-unit is 'm'"),
+    (["presliding", "--time", "t", "--position", "x", "--force", "F", "--position-unit", "um"], "s,mm,N", "column 'x' is in mm by the file's units row, but --position-unit is 'um'"),
+    (["plant", "--time", "t", "--input", "F", "--output", "x", "--fmin", "1", "--fmax", "50"], "ms,m,V", "column 't' is in ms by the file's units row, but --time-unit is 's'"),
+])
+def test_a_units_row_that_contradicts_the_flags_is_refused(tmp_path, capsys, argv, units_row, message):
+    f = tmp_path / "run.csv"
+    f.write_text(f"t,x,F\n{units_row}\n" + "\n".join(f"{i * 1e-3},{i * 1e-3},{1.0 + (i % 7)}" for i in range(400)))
+    assert main(["identify", argv[0], str(f), *argv[1:]]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]

@@ -213,7 +213,10 @@ def _plant(args: argparse.Namespace, run: Run) -> int:
     if args.fmin >= args.fmax:
         raise DataError(f"--fmin {args.fmin:g} must be below --fmax {args.fmax:g}")
     columns = {"time": args.time, "input": args.input, "output": args.output, "excitation": args.excitation}
-    cols = load_columns(args.file, {k: v for k, v in columns.items() if v is not None}, min_samples=256)
+    declared = {"time": (args.time_unit, "time", "time_unit"), "input": (args.input_unit, "drive", "input_unit"),
+                "output": (args.output_unit, "position", "output_unit")}
+    with units_as_flags():
+        cols = load_columns(args.file, {k: v for k, v in columns.items() if v is not None}, min_samples=256, declared_units=declared)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)
         frf = estimate_frf(cols["time"], cols["input"], cols["output"], excitation=cols.get("excitation"), nperseg=args.nperseg)
