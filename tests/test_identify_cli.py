@@ -209,9 +209,9 @@ def test_unit_errors_name_the_flags_not_python_arguments(tmp_path, capsys, argv,
 
 
 @pytest.mark.parametrize("argv, units_row, message", [
-    (["static-map", "--time", "t", "--position", "x", "--force", "F"], "s,mm,N", "column 'x' is in mm by the file's units row, but --position-unit is 'm'"),
-    (["presliding", "--time", "t", "--position", "x", "--force", "F", "--position-unit", "um"], "s,mm,N", "column 'x' is in mm by the file's units row, but --position-unit is 'um'"),
-    (["plant", "--time", "t", "--input", "F", "--output", "x", "--fmin", "1", "--fmax", "50"], "ms,m,V", "column 't' is in ms by the file's units row, but --time-unit is 's'"),
+    (["static-map", "--time", "t", "--position", "x", "--force", "F"], "s,mm,N", "column 'x' is in mm by the file, but --position-unit is 'm'"),
+    (["presliding", "--time", "t", "--position", "x", "--force", "F", "--position-unit", "um"], "s,mm,N", "column 'x' is in mm by the file, but --position-unit is 'um'"),
+    (["plant", "--time", "t", "--input", "F", "--output", "x", "--fmin", "1", "--fmax", "50"], "ms,m,V", "column 't' is in ms by the file, but --time-unit is 's'"),
 ])
 def test_a_units_row_that_contradicts_the_flags_is_refused(tmp_path, capsys, argv, units_row, message):
     f = tmp_path / "run.csv"

@@ -171,7 +171,7 @@ def test_a_units_row_must_agree_with_the_declared_units(tmp_path, units_row):
     declared = {"time": ("s", "time", "time_unit"), "force": ("N", "force", "force_unit")}
     cols = load_columns(path, mapping, declared_units={**declared, "position": ("mm", "position", "position_unit")})
     np.testing.assert_allclose(cols["position"], 0.5 * np.arange(30))  # the units row is not data
-    with pytest.raises(DataError, match=r"column 'q' is in mm by the file's units row, but `position_unit` is 'm' "
+    with pytest.raises(DataError, match=r"column 'q' is in mm by the file, but `position_unit` is 'm' "
                                         r"\(the values would be off by a factor 0.001\); declare it as mm"):
         load_columns(path, mapping, declared_units={**declared, "position": ("m", "position", "position_unit")})
 
@@ -194,3 +194,13 @@ def test_a_commented_header_right_above_the_data_names_the_columns(tmp_path):
     np.testing.assert_allclose(read_table(tmp_path / "np.csv").column("q"), t**2)
     np.testing.assert_allclose(np.diff(read_table(tmp_path / "ros.csv").column("time")), 1e7, rtol=1e-4)  # ns since 1970 in doubles: 256 ns steps
     np.testing.assert_allclose(read_table(tmp_path / "notes.csv").column("q"), t**2)
+
+
+def test_a_unit_at_the_end_of_a_column_name_is_checked_too(tmp_path):
+    path = _csv(tmp_path / "h.csv", "t [s],x (mm),F (filtered)\n" + _rows())
+    mapping = {"time": "t [s]", "position": "x (mm)", "force": "F (filtered)"}
+    declared = {"time": ("s", "time", "time_unit"), "force": ("kN", "force", "force_unit")}
+    cols = load_columns(path, mapping, declared_units={**declared, "position": ("mm", "position", "position_unit")})
+    assert cols["position"].size == 30  # "(filtered)" is no unit: the force is taken as declared
+    with pytest.raises(DataError, match=r"column 'x \(mm\)' is in mm by the file, but `position_unit` is 'um'"):
+        load_columns(path, mapping, declared_units={**declared, "position": ("um", "position", "position_unit")})

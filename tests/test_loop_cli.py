@@ -133,4 +133,4 @@ def test_cli_refuses_a_unit_the_files_units_row_contradicts(rig_csv, tmp_path, c
     argv = ["loop", str(labelled), "--time", "t_ms", "--time-unit", "ms", "--position", "x_mm", "--command", "u", "--gain", str(gain), "--quiet"]
     assert main(argv) == 2  # --position-unit left at its default, m
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "column 'x_mm' is in mm by the file's units row, but --position-unit is 'm'" in err[0]
+    assert len(err) == 1 and "column 'x_mm' is in mm by the file, but --position-unit is 'm'" in err[0]

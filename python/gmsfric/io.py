@@ -5,8 +5,9 @@ Columns are always named explicitly by the caller (``--time t --position qm``); 
 guessed.  In a .mat file a struct's fields are named as in MATLAB (``log.q``, nested
 ``log.joint3.tau``) and a matrix's columns likewise (``q(:,3)``; a matrix with more columns than
 rows holds its signals in rows, ``q(3,:)``).  Files saved with ``-v7`` or older are read by
-scipy, ``-v7.3`` (HDF5) files with h5py when it is installed.  A CSV's units row, if any, is
-checked against the units the caller declares (:meth:`Table.check_unit`).  Problems raise
+scipy, ``-v7.3`` (HDF5) files with h5py when it is installed.  The units a CSV states (a units
+row, or a header ending in a unit, ``x [mm]``) are checked against the units the caller declares
+(:meth:`Table.check_unit`).  Problems raise
 :class:`~gmsfric.errors.DataError` naming the file and the column.
 Every output file is written to a temporary file in its directory and renamed over the target
 (:func:`write_text_atomic`, :func:`atomic_path`), so a crash or Ctrl-C never leaves half a file.
@@ -43,7 +44,8 @@ class Table:
     scalars: dict[str, float] = field(default_factory=dict)
     #: Shapes of the matrices of a .mat file, whose columns (or rows) are in ``columns``.
     matrices: dict[str, tuple[int, int]] = field(default_factory=dict)
-    #: Units a CSV file gives for its columns in a row under the header (``s,mm,N``).
+    #: Units a CSV file states for its columns: in a row under the header (``s,mm,N``) or at the
+    #: end of a column's name (``x [mm]``, ``F (N)``).
     units: dict[str, str] = field(default_factory=dict)
 
     def check_unit(self, name: str, declared: str, quantity: str, argument: str) -> None:
@@ -61,7 +63,7 @@ class Table:
         same = in_file.dim == given.dim and abs(in_file.factor - given.factor) <= 1e-12 * abs(given.factor)
         if not same:
             scale = f" (the values would be off by a factor {in_file.factor / given.factor:.6g})" if in_file.dim == given.dim else ""
-            raise DataError(f"{self.source}: column {name!r} is in {written} by the file's units row, but `{argument}` is "
+            raise DataError(f"{self.source}: column {name!r} is in {written} by the file, but `{argument}` is "
                             f"{declared!r}{scale}; declare it as {written}")
 
     def column(self, name: str, role: str = "column") -> NDArray[np.float64]:
@@ -145,6 +147,14 @@ def check_input_file(path: str | Path, *, role: str = "file") -> Path:
 COMMENT_PREFIXES = ("#", "%")
 
 
+def _is_unit(text: str) -> bool:
+    try:
+        units_module.parse(text)
+    except units_module.UnitError:
+        return False
+    return True
+
+
 def _is_number(cell: str) -> bool:
     try:
         float(cell)
@@ -199,6 +209,11 @@ def _csv_layout(path: Path, lines: list[str]) -> _CsvLayout:
         # a row of units under the header (``s,mm,N`` or ``[s],[mm],[N]``): checked against the declared units
         units = {h: c.strip().strip("[]()").strip() for h, c in zip(header, first)}
         data_start = next(i for i in content if i > content[k] and not lines[i].lstrip().startswith(COMMENT_PREFIXES)) + 1
+    for h in header:
+        # a name ending in a unit, "x [mm]": a label that is no unit ("F (filtered)") says nothing
+        label = re.search(r"[\[(]\s*([^\[\]()]+?)\s*[\])]\s*$", h)
+        if h not in units and label is not None and _is_unit(label.group(1)):
+            units[h] = label.group(1)
     decimal_comma = dialect.delimiter != "," and any("," in c and not _is_number(c) for c in first)
     return _CsvLayout(header, units, data_start, dialect, decimal_comma)
 
@@ -359,7 +374,8 @@ def load_columns(path: str | Path | Table, mapping: Mapping[str, str], *, min_sa
     ``min_samples`` rows, values are finite, and a ``time`` role increases strictly (never
     decreases, with ``repeated_time``: for a caller that merges samples logged under one stamp).
     ``declared_units`` maps a role to ``(unit, quantity, argument)``, the unit the caller was
-    given for it: a file that states another unit for that column (a units row) is refused.
+    given for it: a file that states another unit for that column (a units row, or the column's
+    name ending in one, ``x [mm]``) is refused.
     """
     table = path if isinstance(path, Table) else read_table(path)
     out = {role: table.column(name, role) for role, name in mapping.items()}
