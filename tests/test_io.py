@@ -204,3 +204,16 @@ def test_a_unit_at_the_end_of_a_column_name_is_checked_too(tmp_path):
     assert cols["position"].size == 30  # "(filtered)" is no unit: the force is taken as declared
     with pytest.raises(DataError, match=r"column 'x \(mm\)' is in mm by the file, but `position_unit` is 'um'"):
         load_columns(path, mapping, declared_units={**declared, "position": ("um", "position", "position_unit")})
+
+
+def test_a_time_column_of_date_stamps_is_read_as_seconds(tmp_path):
+    stamps = [f"2026-11-28 23:59:59.{k:03d}" for k in range(990, 1000)] + [f"2026-11-29T00:00:00.{k:03d}Z" for k in range(20)]
+    path = _csv(tmp_path / "s.csv", "stamp,q\n" + "\n".join(f"{s},{i}" for i, s in enumerate(stamps)))
+    mapping = {"time": "stamp", "position": "q"}
+    cols = load_columns(path, mapping, declared_units={"time": ("s", "time", "time_unit")})
+    np.testing.assert_allclose(cols["time"], np.arange(30) * 1e-3, atol=1e-12)  # across midnight
+    with pytest.raises(DataError, match=r"column 'stamp' is in s by the file, but `time_unit` is 'ms'"):
+        load_columns(path, mapping, declared_units={"time": ("ms", "time", "time_unit")})
+    broken = _csv(tmp_path / "b.csv", "stamp,q\n2026-11-28 12:00:00.000,0\nlater,1\n")
+    with pytest.raises(DataError, match=r"data row 2, column 'stamp': 'later' is not a date and time like the first row's"):
+        read_table(broken)

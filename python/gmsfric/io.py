@@ -163,6 +163,11 @@ def _is_number(cell: str) -> bool:
     return True
 
 
+#: A date and time as loggers write it (ISO 8601, UTC or local, no offset): a time column of
+#: stamps is read as seconds from its first stamp.
+TIMESTAMP = re.compile(r"^\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?Z?$")
+
+
 #: Lines read to find a CSV's layout (preamble, header, units row, delimiter) before the data.
 CSV_LAYOUT_LINES = 2000
 
@@ -261,6 +266,20 @@ def _parse_rows(path: Path, layout: _CsvLayout) -> NDArray[np.float64]:
         if len(r) != len(header):
             raise DataError(f"{path}: data row {i + 1} has {len(r)} fields, the header {len(header)}")
     dot = (lambda c: c.replace(",", ".")) if layout.decimal_comma else (lambda c: c)
+    stamped = [j for j, c in enumerate(body[0] if body else []) if TIMESTAMP.match(c.strip())]
+    for j in stamped:
+        # date-and-time stamps become seconds from the first one, and the column's unit s
+        odd = next((i for i, r in enumerate(body) if not TIMESTAMP.match(r[j].strip())), None)
+        if odd is not None:
+            raise DataError(f"{path}: data row {odd + 1}, column {header[j]!r}: {body[odd][j].strip()!r} is not a date and time like the first row's")
+        try:
+            stamps = np.array([r[j].strip().removesuffix("Z") for r in body], dtype="datetime64[ns]")
+        except ValueError as exc:  # matches the pattern, yet no date (a 13th month)
+            raise DataError(f"{path}: column {header[j]!r}: {exc}") from None
+        seconds = (stamps - stamps[0]).astype(np.int64) / 1e9
+        for r, value in zip(body, seconds):
+            r[j] = repr(float(value))
+        layout.units[header[j]] = "s"
     try:
         return np.array([[float(dot(c)) for c in r] for r in body], dtype=float).reshape(len(body), len(header))
     except ValueError:
