@@ -134,3 +134,26 @@ def test_cli_refuses_a_unit_the_files_units_row_contradicts(rig_csv, tmp_path, c
     assert main(argv) == 2  # --position-unit left at its default, m
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "column 'x_mm' is in mm by the file, but --position-unit is 'm'" in err[0]
+
+
+def test_cli_takes_a_sample_rate_for_a_log_without_time(rig_csv, tmp_path, capsys):
+    path, gain = rig_csv
+    raw = np.loadtxt(path, delimiter=",", skiprows=1)
+    rate = 1e3 / np.median(np.diff(raw[:, 0]))  # the rig logs at 1 kHz, stamped in ms
+    untimed = tmp_path / "untimed.csv"
+    np.savetxt(untimed, raw[:, 1:3], delimiter=",", header="x_mm,u", comments="")
+    outs = []
+    for src, timing in ((path, ["--time", "t_ms", "--time-unit", "ms"]), (untimed, ["--sample-rate", f"{rate:.12g}"])):
+        out = tmp_path / f"{src.stem}.json"
+        assert main(["loop", str(src), *timing, "--position", "x_mm", "--position-unit", "mm", "--command", "u", "--gain", str(gain),
+                     "--json", str(out), "--quiet"]) == 0
+        outs.append(json.loads(out.read_text()))
+    assert outs[1]["final"]["effects"] == outs[0]["final"]["effects"]
+    assert outs[1]["final"]["validation_error_pct"] == pytest.approx(outs[0]["final"]["validation_error_pct"], rel=1e-6)
+    assert outs[1]["provenance"]["sample_rate_hz"] == pytest.approx(rate)
+    capsys.readouterr()
+    base = ["loop", str(untimed), "--position", "x_mm", "--command", "u", "--gain", str(gain), "--quiet"]
+    assert main([*base, "--sample-rate", "1000", "--time-unit", "ms"]) == 2
+    assert "--time-unit goes with --time" in capsys.readouterr().err
+    assert main([*base, "--sample-rate", "0"]) == 2
+    assert "--sample-rate" in capsys.readouterr().err

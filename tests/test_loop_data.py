@@ -314,3 +314,18 @@ def test_the_loop_decimates_as_scipy_does(dec):
     got = zero_phase_decimate(x, dec)
     assert got.shape == expected.shape
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def test_a_log_without_time_takes_a_sample_rate_and_refuses_a_bad_one(tmp_path):
+    t, q, f = _run()
+    p = _csv(tmp_path / "run.csv", {"t": t, "q": q, "F": f})
+    timed = load_axis_data(p, time="t", position="q", force="F")
+    untimed = load_axis_data(p, sample_rate=1000.0, position="q", force="F")
+    np.testing.assert_allclose(untimed.t, timed.t, atol=1e-12)
+    with pytest.raises(DataError, match="either a time column or a sample rate"):
+        load_axis_data(p, time="t", sample_rate=1000.0, position="q", force="F")
+    with pytest.raises(DataError, match="either a time column or a sample rate"):
+        load_axis_data(p, position="q", force="F")
+    for bad in (0.0, -5.0, float("nan"), "1000"):
+        with pytest.raises(InvalidInputError, match="`sample_rate`"):
+            load_axis_data(p, sample_rate=bad, position="q", force="F")

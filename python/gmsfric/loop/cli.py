@@ -34,7 +34,10 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("est", metavar="EST", help="estimation run (.csv with a header row, or .mat: name a struct field as log.q, a matrix column as q(:,3))")
     p.add_argument("--validate", metavar="VAL", help="validation run; without it, part of EST is held out")
-    p.add_argument("--time", required=True, metavar="COL")
+    tg = p.add_mutually_exclusive_group(required=True)
+    tg.add_argument("--time", metavar="COL")
+    tg.add_argument("--sample-rate", type=positive_float, metavar="HZ", help="for a log without a time column: its rate, time from 0 "
+                    "in steps of 1/HZ (the runs' --time-unit is then not used)")
     p.add_argument("--position", required=True, metavar="COL")
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--force", metavar="COL", help="force column (in --force-unit): the drive is then the force itself, so the "
@@ -112,7 +115,9 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
         raise DataError("--command needs --gain (a number or a scalar name in the file)")
     if args.force is not None and args.gain is not None:
         raise DataError("--gain only goes with --command")
-    common = dict(time=args.time, position=args.position, force=args.force, command=args.command_col, gain=args.gain,
+    if args.sample_rate is not None and args.time_unit != "s":
+        raise DataError("--time-unit goes with --time: with --sample-rate the time is in s from the rate")
+    common = dict(time=args.time, sample_rate=args.sample_rate, position=args.position, force=args.force, command=args.command_col, gain=args.gain,
                   reference=args.reference, time_unit=args.time_unit, position_unit=args.position_unit, force_unit=args.force_unit)
     est_table = read_table(args.est)
     with units_as_flags():
@@ -148,6 +153,8 @@ def _loop(args: argparse.Namespace, run: Run) -> int:
                "disturbance": args.disturbance}
     result.provenance = run.provenance(columns=columns, units={"time": args.time_unit, "position": args.position_unit, "force": args.force_unit},
                                        gain=args.gain)
+    if args.sample_rate is not None:
+        result.provenance["sample_rate_hz"] = args.sample_rate
     if args.json:
         run.write_json(args.json, result)
     if args.plot:

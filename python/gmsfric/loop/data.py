@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import units
-from .._validate import float_array, number, show, within_fit_range
+from .._validate import float_array, number, positive, show, within_fit_range
 from ..errors import DataError
 from ..io import Table, load_columns, read_table
 
@@ -195,7 +195,7 @@ def timing_summary(t: NDArray[np.float64]) -> dict[str, Any]:
 def load_axis_data(
     path: str | Path | Table,
     *,
-    time: str,
+    time: str | None = None,
     position: str,
     force: str | None = None,
     command: str | None = None,
@@ -205,6 +205,7 @@ def load_axis_data(
     time_unit: str = "s",
     position_unit: str = "m",
     force_unit: str = "N",
+    sample_rate: float | None = None,
 ) -> AxisData:
     """Read one run from a CSV (header row) or MATLAB .mat file with explicit column names.
 
@@ -213,7 +214,8 @@ def load_axis_data(
     path : str, Path or Table
         The file (or an already read :class:`gmsfric.io.Table`).
     time, position : str
-        Column names of time and measured position.
+        Column names of time and measured position.  A log without a time column gives
+        ``sample_rate`` instead of ``time``.
     force : str, optional
         Column of the force on the axis.  Give either ``force`` or ``command`` and ``gain``.
     command : str, optional
@@ -225,6 +227,9 @@ def load_axis_data(
         disturbance added to the controller output (command units with ``command``; with
         ``force`` the drive is the force, so ``force_unit``), used only for the closed-loop
         simulation.
+    sample_rate : float, optional
+        Samples per second (Hz) of a log without a time column: its time runs from 0 in steps of
+        ``1 / sample_rate``.  Give either ``time`` or ``sample_rate``.
     time_unit, position_unit, force_unit : str
         Units in the file, any that :mod:`gmsfric.units` reads (``s``, ``ms``; ``m``, ``mm``,
         ``um``; ``N``, ``mN``, ``kN``).  A rotary axis gives its position in ``rad`` or ``deg`` and
@@ -254,7 +259,10 @@ def load_axis_data(
         raise DataError(f"{table.source}: a command column needs a drive gain (a number or a scalar name in the file)")
     if force is not None and gain is not None:
         raise DataError(f"{table.source}: a gain only makes sense with a command column")
-    mapping = {"time": time, "position": position}
+    if (time is None) == (sample_rate is None):
+        raise DataError(f"{table.source}: give either a time column or a sample rate (not both, not neither)")
+    fs = None if sample_rate is None else positive("sample_rate", number("sample_rate", sample_rate))
+    mapping = {"position": position} if time is None else {"time": time, "position": position}
     if force is not None:
         mapping["force"] = force
     else:
@@ -277,7 +285,7 @@ def load_axis_data(
     else:
         f = cols["force"] * kf
     return AxisData(
-        t=cols["time"] * kt,
+        t=cols["time"] * kt if fs is None else np.arange(cols["position"].size) / fs,
         position=cols["position"] * kq,
         force=f,
         source=Path(table.source).name,
