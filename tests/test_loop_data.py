@@ -322,9 +322,9 @@ def test_a_log_without_time_takes_a_sample_rate_and_refuses_a_bad_one(tmp_path):
     timed = load_axis_data(p, time="t", position="q", force="F")
     untimed = load_axis_data(p, sample_rate=1000.0, position="q", force="F")
     np.testing.assert_allclose(untimed.t, timed.t, atol=1e-12)
-    with pytest.raises(DataError, match="either a time column or a sample rate"):
+    with pytest.raises(DataError, match=r"either a time column \(`time`\) or a sample rate"):
         load_axis_data(p, time="t", sample_rate=1000.0, position="q", force="F")
-    with pytest.raises(DataError, match="either a time column or a sample rate"):
+    with pytest.raises(DataError, match=r"either a time column \(`time`\) or a sample rate"):
         load_axis_data(p, position="q", force="F")
     for bad in (0.0, -5.0, float("nan"), "1000"):
         with pytest.raises(InvalidInputError, match="`sample_rate`"):

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import units as _units
-from ..cli import Run, declare_files, units_as_flags, int_at_least, non_negative_float, non_negative_int, positive_float, positive_int, positive_or_inf
+from ..cli import Run, declare_files, int_at_least, non_negative_float, non_negative_int, positive_float, positive_int, positive_or_inf, units_as_flags
 from ..errors import DataError, FitWarning
 from ..io import Table, load_columns, read_table
 from .diagnostics import format_block

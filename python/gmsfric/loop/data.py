@@ -252,6 +252,9 @@ def load_axis_data(
     rotary = units.is_rotary(position_unit, "position", name="position_unit")
     kq = units.factor(position_unit, "position", name="position_unit")
     kf = units.factor(force_unit, "force", rotary=rotary, name="force_unit")
+    if (time is None) == (sample_rate is None):
+        raise DataError("give either a time column (`time`) or a sample rate (`sample_rate`), not both, not neither")
+    fs = None if sample_rate is None else positive("sample_rate", number("sample_rate", sample_rate))
     table = path if isinstance(path, Table) else read_table(path)
     if (force is None) == (command is None):
         raise DataError(f"{table.source}: give either a force column or a command column with a gain (not both, not neither)")
@@ -259,9 +262,6 @@ def load_axis_data(
         raise DataError(f"{table.source}: a command column needs a drive gain (a number or a scalar name in the file)")
     if force is not None and gain is not None:
         raise DataError(f"{table.source}: a gain only makes sense with a command column")
-    if (time is None) == (sample_rate is None):
-        raise DataError(f"{table.source}: give either a time column or a sample rate (not both, not neither)")
-    fs = None if sample_rate is None else positive("sample_rate", number("sample_rate", sample_rate))
     mapping = {"position": position} if time is None else {"time": time, "position": position}
     if force is not None:
         mapping["force"] = force
