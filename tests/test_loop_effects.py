@@ -9,7 +9,8 @@ import pytest
 
 from gmsfric.loop.data import AxisData
 from gmsfric.loop import LoopConfig, run_loop
-from gmsfric.loop.effects import CATALOGUE, _compliance_variants, _play, _presliding, _stribeck_ok, dip_resolution, stribeck_fall, velocity_resolution
+from gmsfric.loop.effects import (CATALOGUE, COMPLIANCE_GRID_ZETAS, _compliance_variants, _play, _presliding, _stribeck_ok, dip_resolution,
+                                   resonance_limit, stribeck_fall, velocity_resolution)
 from gmsfric.loop.rigs import Rig, simulate_rig
 from gmsfric.loop.idim import LinearModel, Signals
 
@@ -227,3 +228,20 @@ def test_presliding_crossed_slower_than_the_standstill_speed_is_judged_where_the
     # with no creeping rows (the creep speed at the standstill speed) the same data miss it
     missed = run_loop(est, val, LoopConfig(creep_fraction=0.01, **only))
     assert missed.effects == []
+
+
+@pytest.mark.parametrize("fs", [250.0, 1000.0, 5000.0])
+def test_compliance_grid_keeps_a_sharp_resonance_within_half_its_bandwidth(fs):
+    """At each physical damping ratio the frequency grid steps by at most ``zeta`` (relative, at
+    least 3 %), so any resonance in the band lies within half its bandwidth of a grid point."""
+    t = np.arange(0.0, 6.0, 1.0 / fs)
+    q = 0.05 * np.sin(2 * np.pi * 0.5 * t)
+    s = Signals(AxisData(t, q, 10.0 * np.sign(np.cos(2 * np.pi * 0.5 * t)), source="sine"))
+    grid: dict[float, list[float]] = {}
+    for m in _compliance_variants(LinearModel([]), s, np.zeros(s.n_rows)):
+        fn, zeta = next(tm.hyper for tm in m.terms)
+        grid.setdefault(zeta, []).append(fn)
+    for zeta in COMPLIANCE_GRID_ZETAS:
+        fns = np.sort(grid[zeta])
+        assert fns[0] <= 2.0 + 1e-9 and fns[-1] >= resonance_limit(s) * (1 - 1e-9)
+        assert np.max(fns[1:] / fns[:-1]) <= 1.0 + max(zeta, 0.03) + 1e-9

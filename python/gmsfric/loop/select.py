@@ -793,21 +793,22 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
     best_invalid: tuple[float, str] | None = None
     contested: tuple[float, LinearModel] | None = None
     why: str | None = None
-    for m in eff.variants(model, st.split.est, r_est):
+    split = choice_split(eff, st.split)
+    for m in eff.variants(model, split.est, r_est):
         try:
             if eff.physical is not None:
-                w = eff.check(_fit(m, st.split), st.split.est)
+                w = eff.check(_fit(m, split), split.est)
                 if w is not None:
                     why = w
-                    is_probe = eff.probe is not None and eff.probe(m.params(), st.split.est)
-                    if is_probe or (eff.contested is not None and eff.contested(m.params(), st.split.est)):
-                        cv_bad = _cv(m, st.split, cfg)
+                    is_probe = eff.probe is not None and eff.probe(m.params(), split.est)
+                    if is_probe or (eff.contested is not None and eff.contested(m.params(), split.est)):
+                        cv_bad = _cv(m, split, cfg)
                         if is_probe and (best_invalid is None or cv_bad < best_invalid[0]):
                             best_invalid = (cv_bad, w)
                         if not is_probe and (contested is None or cv_bad < contested[0]):
                             contested = (cv_bad, m)
                     continue
-            cv = _cv(m, st.split, cfg)
+            cv = _cv(m, split, cfg)
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             continue
         if best is None or cv < best[0]:
@@ -819,13 +820,35 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
     if best_invalid is not None and (best is None or best_invalid[0] < best[0]):
         return None, f"{best_invalid[1]}; that fits the estimation rows best"
     if best is not None and eff.refine is not None:
-        best, beyond = _refine_hyper(eff, best, st, cfg)
+        best, beyond = _refine_hyper(eff, best, split, cfg)
         if beyond is not None:
             return None, f"{beyond}; the refined fit goes there"
+    if best is not None and split is not st.split and eff.physical is not None:
+        # chosen on part of the rows, it is fitted and tested on all of them: physical there too
+        w = eff.check(_fit(best[1].copy(), st.split), st.split.est)
+        if w is not None:
+            return None, f"{w}; fitted on all rows, with its parameters chosen clear of reversals and stops"
     return (best[1], why) if best is not None else (None, why)
 
 
-def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg: LoopConfig) -> tuple[tuple[float, LinearModel], str | None]:
+#: Fewest estimation rows clear of reversals and stops on which an effect's parameters are chosen
+#: (:attr:`Effect.chosen_clear_of_reversals`); with fewer, they are chosen on all moving rows.
+MIN_CHOICE_ROWS = 200
+
+
+def choice_split(eff: Effect, split: Split) -> Split:
+    """The rows on which ``eff``'s nonlinear parameters are chosen: the estimation rows clear of
+    reversals and stops for an effect :attr:`Effect.chosen_clear_of_reversals` (when there are
+    :data:`MIN_CHOICE_ROWS` of them), else ``split``'s own."""
+    if not eff.chosen_clear_of_reversals:
+        return split
+    rows = clear_rows(split).est
+    if rows.sum() < MIN_CHOICE_ROWS:
+        return split
+    return replace(split, est_fit=rows, est_creep=rows, label="moving rows clear of reversals and stops")
+
+
+def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], split: Split, cfg: LoopConfig) -> tuple[tuple[float, LinearModel], str | None]:
     """The effect's nonlinear parameters refined from the best grid variant (Nelder-Mead on their
     logarithms, within the effect's bounds, on the same cross-validated error); the grid variant
     stays when nothing better is found or the refined fit is not physical.  The bounds may reach
@@ -833,14 +856,14 @@ def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg:
     physical (the data prefer what the effect is not, as when a probe wins on the grid)."""
     cv0, m0 = best
     term = next(t for t in m0.terms if t.name == eff.name)
-    bounds = np.log(np.asarray(eff.refine(st.split.est), dtype=float))  # type: ignore[misc]
+    bounds = np.log(np.asarray(eff.refine(split.est), dtype=float))  # type: ignore[misc]
 
     def variant(z: Array) -> LinearModel:
         return _replace_term(m0, term.with_hyper(tuple(float(v) for v in np.exp(np.clip(z, bounds[:, 0], bounds[:, 1])))))
 
     def objective(z: Array) -> float:
         try:
-            return _cv(variant(z), st.split, cfg)
+            return _cv(variant(z), split, cfg)
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             return np.inf
 
@@ -849,8 +872,8 @@ def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], st: _State, cfg:
     if not (np.isfinite(res.fun) and res.fun < cv0):
         return best, None
     m = variant(res.x)
-    if eff.physical is not None and (why := eff.check(_fit(m, st.split), st.split.est)) is not None:
-        beyond = eff.probe is not None and eff.probe(m.params(), st.split.est)
+    if eff.physical is not None and (why := eff.check(_fit(m, split), split.est)) is not None:
+        beyond = eff.probe is not None and eff.probe(m.params(), split.est)
         return best, (why if beyond else None)
     return (float(res.fun), m), None
 
@@ -879,7 +902,7 @@ def _rechoose(model: LinearModel, names: Sequence[str], st: _State, cfg: LoopCon
     dt = st.split.est.dt
     for name in names:
         # a creeping effect's grid parameters are chosen where it is judged
-        split = st.creep_split if CATALOGUE[name].creeping else st.split
+        split = choice_split(CATALOGUE[name], st.creep_split if CATALOGUE[name].creeping else st.split)
         if name == "input_delay":
             reduced = _without(model, name, dt)
         else:
@@ -903,7 +926,7 @@ def _rechoose(model: LinearModel, names: Sequence[str], st: _State, cfg: LoopCon
             if cv < cur_cv:
                 cur_cv, model = cv, cand
         if eff.refine is not None:
-            (cur_cv, model), _ = _refine_hyper(eff, (cur_cv, model), st, cfg)
+            (cur_cv, model), _ = _refine_hyper(eff, (cur_cv, model), split, cfg)
     return model
 
 
