@@ -250,6 +250,16 @@ def test_an_effect_that_corrupts_the_baseline_is_refused():
         theta[i_m] = mass
         _, why = _plausibility(phys, std, LinearModel(list(m0.terms), theta=theta, cov=m0.cov), split, cfg)
         assert (why is not None and "mass" in why) == refused
+    # a baseline whose viscous coefficient is already significantly negative (it absorbed a
+    # missing effect): a step that brings it closer to physical is not refused for it, one that
+    # drives it further negative is
+    sd_v, i_v = std["Fv"], m0.param_names.index("Fv")
+    negative = dict(phys, Fv=-40.0 * sd_v)
+    for fv, refused in ((-10.0 * sd_v, False), (-60.0 * sd_v, True)):
+        theta = m0.theta.copy()
+        theta[i_v] = fv
+        _, why = _plausibility(negative, std, LinearModel(list(m0.terms), theta=theta, cov=m0.cov), split, cfg)
+        assert (why is not None and "viscous" in why) == refused
 
 
 def _pair_state(force_extra, seed: int = 3):

@@ -628,7 +628,10 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
     implausible (``None`` when they are not).
 
     The mass and the viscous coefficient must stay physical: not below -3 standard errors of the
-    baseline's (a small inertia behind a large friction, a robot joint's, is resolved no better).  They may move a lot: the baseline absorbs whatever a missing effect correlates
+    baseline's (a small inertia behind a large friction, a robot joint's, is resolved no better),
+    unless the baseline already had them there and the step brings them closer to physical (a
+    Stribeck hump with a long tail left the baseline a viscous coefficient of -181 N s/m, and the
+    hump -27: it does not corrupt the baseline, it mends part of what the baseline got wrong).  They may move a lot: the baseline absorbs whatever a missing effect correlates
     with (a spring ``k q`` looks like ``-k/w^2 qdd`` on an oscillation, a delay shifts force onto
     ``qdd`` and ``qd``), and the right effect gives it back.  The Coulomb level is what the axis
     slides at, a level every trajectory shows: an effect that changes the effective level by more
@@ -643,9 +646,9 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
         if why is not None or not np.isfinite(a):
             continue
         sd = base_std.get(k, 0.0)
-        if k == "M" and a < -3.0 * sd:
+        if k == "M" and a < -3.0 * sd and a < b:
             why = f"implausible baseline: the mass becomes {a:.4g} (negative)"
-        elif k == "Fv" and a < -3.0 * sd:
+        elif k == "Fv" and a < -3.0 * sd and a < b:
             why = f"implausible baseline: the viscous coefficient becomes {a:.4g} (negative)"
         elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and not 1.0 / cfg.max_parameter_ratio <= ratio <= cfg.max_parameter_ratio:
             why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, beyond a factor {cfg.max_parameter_ratio:g})"
