@@ -218,14 +218,16 @@ class Effect:
         weigh as much as those where it acts.  The chunks are chosen from the fitted force, not
         the measured one, so a useless effect still gains nothing on them on average.
     chosen_clear_of_reversals : bool
-        The effect's nonlinear parameters (grid and refinement) are chosen on the estimation rows
-        clear of reversals and stops (:func:`settled_rows`), then fitted and tested on all rows
-        as usual.  A resonance rings on there after the reversal that excites it, while what the
-        filters make of the friction's switch at the reversal is absent: on all rows a heavily
-        damped "resonance" of negative load mass at the top of the band (a lead, one of the
-        probes) fits that blur best and hides a real one (an outside audit's rig: cross-validated
-        error 0.61 of the baseline's for the probe against 0.83 for the planted resonance on all
-        rows, 0.13 for the planted one clear of reversals).
+        When no valid variant is chosen on the moving estimation rows (a probe fits best), the
+        choice (grid and refinement) is made again on the estimation rows clear of reversals and
+        stops (:func:`settled_rows`); that variant is then fitted and tested on all rows as usual,
+        and must be physical there too.  A resonance rings on there after the reversal that
+        excites it, while what the filters make of the friction's switch at the reversal is
+        absent: on all rows a heavily damped "resonance" of negative load mass at the top of the
+        band (a lead, one of the probes) can fit that blur best and hide a real one (an outside
+        audit's rig: cross-validated error 0.61 of the baseline's for the probe against 0.83 for
+        the planted resonance on all rows, 0.13 for the planted one clear of reversals).  Chosen
+        there first, a resonance on a slow random run with few clear rows was lost to a probe.
     """
 
     name: str

@@ -787,8 +787,30 @@ def _residual_rows(st: _State, cfg: LoopConfig) -> tuple[dict[str, Finding], Arr
 
 
 def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, r_est: Array, prog: Progress | None = None) -> tuple[LinearModel | None, str | None]:
-    """The effect's variant with the smallest cross-validated error on the estimation rows (only
-    physically valid fits), and why the last invalid one was refused.  An effect's
+    """The effect's variant chosen on the moving estimation rows (:func:`_best_variant_on`), and
+    why the last invalid one was refused.  For an effect :attr:`Effect.chosen_clear_of_reversals`
+    that has none there (a probe fits best), the choice is made again on the rows clear of
+    reversals and stops, and that variant stands when its fit on all rows is physical too."""
+    best, why = _best_variant_on(eff, model, st.split, cfg, r_est, prog)
+    if best is not None or not eff.chosen_clear_of_reversals:
+        return best, why
+    clear = clear_split(st.split)
+    if clear is None:
+        return best, why
+    alt, _ = _best_variant_on(eff, model, clear, cfg, r_est, prog)
+    if alt is None:
+        return None, f"{why}; clear of reversals and stops too" if why else why
+    # chosen on part of the rows, it is fitted and tested on all of them: physical there too
+    w = eff.check(_fit(alt.copy(), st.split), st.split.est)
+    if w is not None:
+        return None, f"{why}; chosen clear of reversals and stops, fitted on all rows: {w}" if why else w
+    return alt, why
+
+
+def _best_variant_on(eff: Effect, model: LinearModel, split: Split, cfg: LoopConfig, r_est: Array,
+                     prog: Progress | None = None) -> tuple[LinearModel | None, str | None]:
+    """The effect's variant with the smallest cross-validated error on ``split``'s estimation rows
+    (only physically valid fits), and why the last invalid one was refused.  An effect's
     probe variants (:attr:`Effect.probe`) are cross-validated too, and none is returned when one
     of them is better than the best valid variant (refined first when the effect is
     :attr:`Effect.refine`-d); a contested variant (:attr:`Effect.contested`) counts as valid when its
@@ -797,7 +819,6 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
     best_invalid: tuple[float, str] | None = None
     contested: tuple[float, LinearModel] | None = None
     why: str | None = None
-    split = choice_split(eff, st.split)
     for m in eff.variants(model, split.est, r_est):
         try:
             if eff.physical is not None:
@@ -830,28 +851,20 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
             return None, f"{beyond}; the refined fit goes there"
     if best_invalid is not None and (best is None or best_invalid[0] < best[0]):
         return None, f"{best_invalid[1]}; that fits the estimation rows best"
-    if best is not None and split is not st.split and eff.physical is not None:
-        # chosen on part of the rows, it is fitted and tested on all of them: physical there too
-        w = eff.check(_fit(best[1].copy(), st.split), st.split.est)
-        if w is not None:
-            return None, f"{w}; fitted on all rows, with its parameters chosen clear of reversals and stops"
     return (best[1], why) if best is not None else (None, why)
 
 
 #: Fewest estimation rows clear of reversals and stops on which an effect's parameters are chosen
-#: (:attr:`Effect.chosen_clear_of_reversals`); with fewer, they are chosen on all moving rows.
+#: again (:attr:`Effect.chosen_clear_of_reversals`).
 MIN_CHOICE_ROWS = 200
 
 
-def choice_split(eff: Effect, split: Split) -> Split:
-    """The rows on which ``eff``'s nonlinear parameters are chosen: the estimation rows clear of
-    reversals and stops for an effect :attr:`Effect.chosen_clear_of_reversals` (when there are
-    :data:`MIN_CHOICE_ROWS` of them), else ``split``'s own."""
-    if not eff.chosen_clear_of_reversals:
-        return split
+def clear_split(split: Split) -> Split | None:
+    """``split`` with its estimation rows cut to those clear of reversals and stops (``None`` when
+    fewer than :data:`MIN_CHOICE_ROWS`)."""
     rows = clear_rows(split).est
     if rows.sum() < MIN_CHOICE_ROWS:
-        return split
+        return None
     return replace(split, est_fit=rows, est_creep=rows, label="moving rows clear of reversals and stops")
 
 
@@ -909,7 +922,7 @@ def _rechoose(model: LinearModel, names: Sequence[str], st: _State, cfg: LoopCon
     dt = st.split.est.dt
     for name in names:
         # a creeping effect's grid parameters are chosen where it is judged
-        split = choice_split(CATALOGUE[name], st.creep_split if CATALOGUE[name].creeping else st.split)
+        split = st.creep_split if CATALOGUE[name].creeping else st.split
         if name == "input_delay":
             reduced = _without(model, name, dt)
         else:
