@@ -383,3 +383,45 @@ def test_a_resonance_rung_by_reversals_is_chosen_where_it_rings():
     assert p["fn_hz"]["value"] == pytest.approx(12.66, rel=0.02)
     assert 0.05 / 1.6 < p["zeta"]["value"] < 0.05 * 1.6
     assert 0.0 < p["m_load"]["value"] < p["M"]["value"]
+
+
+def test_a_probe_that_wins_only_at_reversals_gives_way_clear_of_them():
+    """The choice of an effect ``chosen_clear_of_reversals``: where a probe cross-validates best on
+    all moving rows only through what happens at the reversals, the choice is made again on the
+    rows clear of them, and the valid variant found there is returned; without the flag the
+    effect is refused."""
+    from gmsfric.loop.effects import Effect, _add
+    from gmsfric.loop.idim import Term
+    from gmsfric.loop.select import _best_variant, stage_baseline, stage_prepare
+
+    fs = 1000.0
+    t = np.arange(0.0, 12.0, 1.0 / fs)
+    q = 0.05 * np.sin(2 * np.pi * 0.4 * t)
+    qd = np.gradient(q, t)
+    qdd = np.gradient(qd, t)
+    near_reversal = np.exp(-((qd / 0.004) ** 2)) * np.sign(qdd)
+    tone = np.sin(2 * np.pi * 3.0 * t)
+    rng = np.random.default_rng(5)
+    f = 4.0 * qdd + 10.0 * np.sign(qd) + 20.0 * qd + 0.4 * tone + 6.0 * near_reversal + 0.05 * rng.standard_normal(t.size)
+    data = AxisData(t, np.round(q / 1e-7) * 1e-7, f, source="tone and reversal spikes")
+    cfg = LoopConfig(progress=False)
+    split, chunk = stage_prepare(data, None, cfg)
+    st = stage_baseline(split, chunk, cfg)
+    columns = {1.0: lambda s: np.sin(2 * np.pi * 3.0 * s.t), 2.0: lambda s: np.exp(-((np.gradient(s.q, s.t) / 0.004) ** 2))
+               * np.sign(np.gradient(np.gradient(s.q, s.t), s.t))}
+
+    def variants(model, s, r):
+        return [_add(model, Term("test_effect", ("w",), lambda s, h: columns[h[0]](s), (k,), ("kind",)), "test_effect") for k in columns]
+
+    def physical(p, s):
+        return None if p["kind"]["value"] == 1.0 else "the reversal probe"
+
+    def probe(p, s):
+        return p["kind"]["value"] == 2.0
+
+    plain = Effect("test_effect", "a tone", "time", variants, physical, probe=probe)
+    m, why = _best_variant(plain, st.model, st, cfg, np.zeros(split.est.n_rows))
+    assert m is None and "the reversal probe" in why
+    chosen = Effect("test_effect", "a tone", "time", variants, physical, probe=probe, chosen_clear_of_reversals=True)
+    m, _ = _best_variant(chosen, st.model, st, cfg, np.zeros(split.est.n_rows))
+    assert m is not None and next(tm for tm in m.terms if tm.name == "test_effect").hyper == (1.0,)
