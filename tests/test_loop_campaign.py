@@ -201,9 +201,10 @@ def test_presliding_blocks_that_cancel_each_other_are_refused(monkeypatch):
 
 def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     """A rig with no resonance whose residual a heavily damped "load on a spring" fits (a lag,
-    no peak): when an overdamped probe cross-validates best, compliance is refused (a case of the
-    campaign's seed 21, with the planted asymmetry found); without the probe and the damping band,
-    and judged on the fast held-out rows alone, it is named.  The lag is the recipe's position
+    no peak): compliance is refused (a case of the campaign's seed 21, with the planted asymmetry
+    found), by the overdamped probe on the grid or, once the best resonance is refined before it
+    meets the probes (to zeta 0.21 here), by the held-out tests; without the probe and the
+    damping band, and judged on the fast held-out rows alone, it is named.  The lag is the recipe's position
     filter against the force (the rig is logged at 500 Hz): with the cut-off the loop chooses on
     the run nothing is fitted to it, so the guards are shown under the recipe's."""
     import dataclasses
@@ -217,8 +218,9 @@ def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     cfg = LoopConfig(progress=False, effects=("asymmetric_friction", "compliance"), preprocessing=_recipe_filter(runs))
     res = run_loop(*runs, cfg)
     assert res.effects == ["asymmetric_friction"]
-    refused = [s for s in res.steps if s.effect == "compliance" and "no resonant peak" in s.reason]
-    assert refused and "fits the estimation rows best" in refused[-1].reason
+    tried = [s for s in res.steps if s.effect == "compliance"]
+    assert tried and not any(s.accepted for s in tried)
+    assert all("no resonant peak" in s.reason or "held-out" in s.reason for s in tried)
     eff = CATALOGUE["compliance"]
     from gmsfric.loop import select
 
