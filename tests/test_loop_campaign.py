@@ -307,11 +307,6 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     cfg = LoopConfig(progress=False, effects=("input_delay",), alpha=0.05 / len(CATALOGUE))
     res = run_loop(*runs, cfg)
     assert res.effects == []
-    # the switch of friction at its own time already accounts for this shift; the guards below
-    # are tested against the aligned model alone, as they were found
-    monkeypatch.setattr(select, "_with_switch_timing", lambda m, split, cfg: m)
-    res = run_loop(*runs, cfg)
-    assert res.effects == []
     refused = [s for s in res.steps if s.effect == "input_delay"]
     assert refused and "not confirmed away from reversals" in refused[0].reason
     if margin == "filters":
@@ -609,18 +604,14 @@ def test_a_delay_clear_of_reversals_is_tested_on_chunks_cut_for_those_rows(monke
     assert "input_delay" not in run_loop(*runs, cfg).effects
 
 
-def test_a_delay_must_also_pass_on_all_moving_rows(monkeypatch):
+def test_a_delay_must_also_pass_on_all_moving_rows():
     """A clean rig of the campaign's seed 69 (drawn fresh for this check): a delay gains there
     clear of reversals and stops (t = 4.6), but nothing on all moving rows (t = 2.1, p = 0.027).
     Judged on the rows clear of reversals with all rows asked only for the nominal level, the
     loop named it; asking all rows for the family-wise level as well, it ends with nothing."""
-    from gmsfric.loop import LoopConfig, run_loop, select
+    from gmsfric.loop import LoopConfig, run_loop
 
-    runs = _campaign_runs(69, "clean-256-clean")
-    assert run_loop(*runs, LoopConfig(progress=False)).effects == []
-    # tested against the aligned model alone (the switch of friction at its own time refuses it too)
-    monkeypatch.setattr(select, "_with_switch_timing", lambda m, split, cfg: m)
-    res = run_loop(*runs, LoopConfig(progress=False))
+    res = run_loop(*_campaign_runs(69, "clean-256-clean"), LoopConfig(progress=False))
     assert res.effects == []
     step = next(s for s in res.steps if s.effect == "input_delay")
     assert step.evidence["t_heldout_away_from_reversals"] >= 3.0 and step.evidence["p_heldout"] > step.evidence["level"]
@@ -666,38 +657,3 @@ def test_an_effect_held_back_only_by_the_plausibility_guard_is_reported():
     assert res.baseline.params()["Fc"]["value"] < 0.6 * true_fc
     held = [d for d in res.diagnostics if d["code"] == "held_back"]
     assert [d["parameter"] for d in held] == ["offset"] and "Coulomb level" in held[0]["message"]
-
-
-def test_a_delay_must_beat_the_switch_of_friction_at_its_own_time(monkeypatch):
-    """A clean Karnopp rig on random moves (the campaign's seed 81, 5 kHz): the contact sticks at
-    every reversal, and the filtered velocity's sign switches about 8 samples off the friction's
-    switch while the inertia is timed right.  Shifting the whole force by 3 samples trades one
-    for the other and gained 22 % held out (t = 7.2): a false 0.6 ms delay.  Tested against the
-    model whose switch of friction has a time of its own, the delay loses, and none is named;
-    tested against the aligned model alone, it enters."""
-    from gmsfric.loop import LoopConfig, run_loop, select
-
-    runs = _campaign_runs(81, "clean-243-clean")
-    cfg = LoopConfig(progress=False, effects=("input_delay",))
-    res = run_loop(*runs, cfg)
-    assert res.effects == []
-    step = next(s for s in res.steps if s.effect == "input_delay")
-    assert "switch of friction" in step.evidence["tested_against"] and step.evidence["validation_gain"] < 0
-    monkeypatch.setattr(select, "_with_switch_timing", lambda m, split, cfg: m)
-    assert run_loop(*runs, cfg).effects == ["input_delay"]
-
-
-def test_a_real_delay_beats_the_switch_of_friction_at_its_own_time():
-    """The same kind of rig (Karnopp contact, seed 81) with a planted 0.8 ms delay on trapezoid
-    moves: the delay times the inertia too, which no switch of friction does, and is named within
-    one sample of the planted shift (delay plus the sampling hold)."""
-    from gmsfric.loop import LoopConfig, run_loop
-
-    case_id = "single-103-input_delay"
-    runs = _campaign_runs(81, case_id)
-    res = run_loop(*runs, LoopConfig(progress=False, effects=("input_delay",)))
-    assert res.effects == ["input_delay"]
-    case = next(c for c in campaign_cases.make_cases(81, emps=False) if c["id"] == case_id)
-    planted = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay") + 0.5 / case["rig"]["f_ctrl"]
-    dt = float(np.median(np.diff(runs[0].t)))
-    assert abs(res.final.params()["delay_s"]["value"] - planted) <= dt

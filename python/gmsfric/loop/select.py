@@ -70,7 +70,7 @@ from ..errors import IdentificationError, InvalidInputError
 from ..identify.diagnostics import emit
 from .checks import check_result
 from .data import AxisData
-from .effects import CATALOGUE, DELAY_STEPS, Effect, dip_resolution, settled_rows, switch_timing
+from .effects import CATALOGUE, Effect, dip_resolution, settled_rows
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
 from .residuals import Finding, analyse
 from .results import LoopResult, Step
@@ -962,10 +962,7 @@ def _backward(st: _State, cfg: LoopConfig, rnd: int, newest: str) -> None:
             reduced = _fit(_without(st.model, name, dt), split)
             if st.alignment and name == "input_delay":
                 reduced = _align(reduced, split, cfg, st.alignment, rnd, st.chunk)
-            if name == "input_delay":
-                null = _fit(_with_switch_timing(reduced.copy(), split, cfg), split)
-            else:
-                null = _fit(_reduced(st.model, name, dt), split) if CATALOGUE[name].null is not None else reduced
+            null = _fit(_reduced(st.model, name, dt), split) if CATALOGUE[name].null is not None else reduced
             h = heldout(split, null, st.model, st.chunk, effect=name)
             if h.p <= cfg.alpha and h.gain >= cfg.min_gain:
                 continue
@@ -1047,10 +1044,10 @@ def _candidate(m: LinearModel, effect: str, others: list[str], st: _State, cfg: 
     others' grid parameters were chosen without the effect, which may have pulled them (a
     resonance's frequency absorbing a drift): they are chosen again with it, then its own given
     theirs; and again without it from there, so that it is credited only with what it enables."""
-    null = _tested_against(m, effect, st, cfg)
+    null = _tested_against(m, effect, st)
     if others:
         m = _rechoose(m, others + [effect], st, cfg)
-        null = _rechoose(_tested_against(m, effect, st, cfg), others, st, cfg)
+        null = _rechoose(_tested_against(m, effect, st), others, st, cfg)
     null = _fit(null, st.split)
     by_travel = _by_travel(m, null)
     return m, null, 1.0 - _cv(m, st.split, cfg, by_travel) / _cv(null, st.split, cfg, by_travel)
@@ -1068,7 +1065,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     h = heldout(split, null, m, st.chunk, effect=eff.name)
     # the whole must also beat the current model (the others chosen again without
     # the effect, or its null part, may predict the held-out run worse than it)
-    h_cur = heldout(split, st.model, m, st.chunk, effect=eff.name) if st.model.effects or eff.null is not None or eff.name == "input_delay" else h
+    h_cur = heldout(split, st.model, m, st.chunk, effect=eff.name) if st.model.effects or eff.null is not None else h
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
     h_far = heldout_clear(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
     dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
@@ -1084,8 +1081,6 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     ev["judged_on"] = f"{split.label} rows"
     if eff.null is not None:
         ev["tested_against"] = f"the current model plus {', '.join(eff.null(next(t for t in m.terms if t.name == eff.name)).param_names)} alone"
-    elif eff.name == "input_delay":
-        ev["tested_against"] = _null_description(null, split.est.dt)
     reasons = []
     if gain_cv <= 0:
         reasons.append("no cross-validated gain on estimation data")
@@ -1179,42 +1174,14 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
     return True
 
 
-def _tested_against(m: LinearModel, effect: str, st: _State, cfg: LoopConfig) -> LinearModel:
+def _tested_against(m: LinearModel, effect: str, st: _State) -> LinearModel:
     """What the ``effect`` of a candidate ``m`` is tested against (unfitted): ``m`` without it,
     the part of its term that is no evidence on its own kept (:func:`_reduced`), every other
-    term as ``m`` has it, and the current model's timing alignment; for a delay, with the switch
-    of friction at its own best time (:func:`_with_switch_timing`)."""
+    term as ``m`` has it, and the current model's timing alignment."""
     out = _reduced(m, effect, st.split.est.dt)
     if effect == "input_delay":
         out.delay, out.extras = st.model.delay, dict(st.model.extras)
-        out = _with_switch_timing(out, st.split, cfg)
     return out
-
-
-def _with_switch_timing(m: LinearModel, split: Split, cfg: LoopConfig) -> LinearModel:
-    """``m`` (unfitted) plus the switch of friction at the shift of :data:`DELAY_STEPS` that
-    cross-validates best on the estimation rows (:func:`effects.switch_timing`), or ``m`` itself
-    when no shift lowers its cross-validated error: what a delay must beat, since a contact that
-    sticks at reversals shifts the filtered velocity's switch and nothing else."""
-    best_cv, best = _cv(m, split, cfg), m
-    for steps in DELAY_STEPS:
-        cand = m.copy()
-        cand.terms.append(switch_timing(float(steps)))
-        try:
-            cv = _cv(cand, split, cfg)
-        except (IdentificationError, np.linalg.LinAlgError, ValueError):
-            continue
-        if cv < best_cv:
-            best_cv, best = cv, cand
-    return best
-
-
-def _null_description(null: LinearModel, dt: float) -> str:
-    """How a delay's null times the switch of friction, for the report."""
-    term = next((t for t in null.terms if t.name == "switch_timing"), None)
-    if term is None:
-        return "the current model (no later switch of friction fits better)"
-    return f"the current model plus the switch of friction {1e3 * term.hyper[0] * dt:.3g} ms later (Fc_switch)"
 
 
 def _combine(a: LinearModel, b: LinearModel, b_name: str, dt: float) -> LinearModel:
@@ -1269,7 +1236,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
         marginals: dict[str, dict[str, Any]] = {}
         passed = True
         for eff, other in ((ea, eb), (eb, ea)):
-            reduced = _fit(_tested_against(both, eff.name, ps, cfg), split)
+            reduced = _fit(_tested_against(both, eff.name, ps), split)
             hm = heldout(split, reduced, both, st.chunk, effect=eff.name)
             ok = hm.p <= level and hm.t >= cfg.t_threshold and hm.gain >= cfg.min_gain
             mg: dict[str, Any] = {"given": other.name, "t_heldout": round(hm.t, 2), "p_heldout": float(f"{hm.p:.3g}"), "validation_gain": round(hm.gain, 5)}
