@@ -657,3 +657,43 @@ def test_an_effect_held_back_only_by_the_plausibility_guard_is_reported():
     assert res.baseline.params()["Fc"]["value"] < 0.6 * true_fc
     held = [d for d in res.diagnostics if d["code"] == "held_back"]
     assert [d["parameter"] for d in held] == ["offset"] and "Coulomb level" in held[0]["message"]
+
+
+def test_a_delay_must_beat_a_freely_timed_switch_of_friction(monkeypatch):
+    """A clean Karnopp rig on random moves (the campaign's seed 81, 5 kHz): the contact sticks at
+    every reversal, and the filtered velocity's sign switches about 8 samples off the friction's
+    switch while the inertia is timed right.  Shifting the whole force by 3-4 samples trades one
+    for the other and gains 22 % held out (t = 7.2): a false delay.  With the switch of friction
+    free to take a time of its own in both the delay's model and its null, the delay keeps no
+    significant gain and none is named; without that comparison, it enters."""
+    from gmsfric.loop import LoopConfig, run_loop, select
+
+    runs = _campaign_runs(81, "clean-243-clean")
+    cfg = LoopConfig(progress=False, effects=("input_delay",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == []
+    step = next(s for s in res.steps if s.effect == "input_delay")
+    assert step.evidence["validation_gain"] >= cfg.min_gain and step.evidence["t_heldout"] >= cfg.t_threshold
+    assert step.evidence["t_heldout_beyond_a_free_switch"] < cfg.t_threshold and "switch of friction" in step.reason
+    monkeypatch.setattr(select, "_with_switch_timing", lambda m, split, cfg: m)
+    assert run_loop(*runs, cfg).effects == ["input_delay"]
+
+
+def test_a_real_delay_keeps_its_gain_beyond_a_freely_timed_switch():
+    """The same kind of rig (Karnopp contact, seed 81) with a planted 0.8 ms delay on trapezoid
+    moves: the delay times the inertia too, which no switch of friction does; it keeps its
+    held-out gain beyond a freely timed switch and is named within one sample of the planted
+    shift (delay plus the sampling hold)."""
+    from gmsfric.loop import LoopConfig, run_loop
+
+    case_id = "single-103-input_delay"
+    runs = _campaign_runs(81, case_id)
+    cfg = LoopConfig(progress=False, effects=("input_delay",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == ["input_delay"]
+    step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
+    assert step.evidence["validation_gain_beyond_a_free_switch"] >= 0.5 * step.evidence["validation_gain"]
+    case = next(c for c in campaign_cases.make_cases(81, emps=False) if c["id"] == case_id)
+    planted = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay") + 0.5 / case["rig"]["f_ctrl"]
+    dt = float(np.median(np.diff(runs[0].t)))
+    assert abs(res.final.params()["delay_s"]["value"] - planted) <= dt

@@ -273,7 +273,7 @@ class Term:
         return Term(self.name, self.param_names, self.build, tuple(hyper), self.hyper_names)
 
 
-def _shift(x: Array, steps: float) -> Array:
+def advance(x: Array, steps: float) -> Array:
     """``x(t + steps*dt)`` by linear interpolation (edges held)."""
     if steps == 0:
         return x
@@ -290,7 +290,7 @@ def term_rows(term: Term, sig: Signals, delay_steps: float = 0.0) -> Array:
     key = ("rows", term.name, term.param_names, term.hyper, round(delay_steps, 4))
 
     def make() -> Array:
-        return sig.decimate(_shift(term.full(sig), delay_steps))
+        return sig.decimate(advance(term.full(sig), delay_steps))
 
     return sig.cached(key, make)
 

@@ -70,7 +70,7 @@ from ..errors import IdentificationError, InvalidInputError
 from ..identify.diagnostics import emit
 from .checks import check_result
 from .data import AxisData
-from .effects import CATALOGUE, Effect, dip_resolution, settled_rows
+from .effects import CATALOGUE, DELAY_STEPS, Effect, dip_resolution, settled_rows, switch_timing
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
 from .residuals import Finding, analyse
 from .results import LoopResult, Step
@@ -1104,6 +1104,13 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
                               if eff.whole_motion else "a dip only where the axis reverses or sticks is the switch of friction seen through the filters"))
     if dbic >= 0:
         reasons.append(f"BIC does not decrease ({dbic:+.1f})")
+    if eff.name == "input_delay" and not reasons:
+        h_sw = _beyond_a_free_switch(m, null, split, cfg, st.chunk)
+        ev.update(t_heldout_beyond_a_free_switch=round(h_sw.t, 2), validation_gain_beyond_a_free_switch=round(h_sw.gain, 5))
+        if h_sw.p > level or h_sw.gain < cfg.min_gain:
+            reasons.append(f"no better on held-out data than the switch of friction at a time of its own (gain "
+                           f"{100 * h_sw.gain:.2f} %, t = {h_sw.t:.2f}, p = {h_sw.p:.2g}): a contact that sticks at "
+                           "reversals makes the filtered velocity switch late, and a delay of the whole force absorbs that lag")
     if implausible is not None:
         if not reasons:
             # every test of the data passed: the report says so (``held_back`` diagnostic)
@@ -1184,6 +1191,33 @@ def _tested_against(m: LinearModel, effect: str, st: _State) -> LinearModel:
     return out
 
 
+def _beyond_a_free_switch(m: LinearModel, null: LinearModel, split: Split, cfg: LoopConfig, chunk: int) -> HeldOut:
+    """Held-out test of a delay candidate ``m`` against its ``null`` when both may time the
+    switch of friction freely (:func:`_with_switch_timing`): the nested comparison leaves the
+    delay only what it does to the rest of the force (the inertia's timing), which is what a
+    real delay carries and a late filtered switch does not."""
+    null_sw = _fit(_with_switch_timing(null.copy(), split, cfg), split)
+    m_sw = _fit(_with_switch_timing(m.copy(), split, cfg), split)
+    return heldout(split, null_sw, m_sw, chunk, effect="input_delay")
+
+
+def _with_switch_timing(m: LinearModel, split: Split, cfg: LoopConfig) -> LinearModel:
+    """``m`` (unfitted) plus ``sign(qd)`` with a coefficient of its own, advanced by the shift of
+    :data:`DELAY_STEPS` beyond ``m``'s timing that cross-validates best on the estimation rows,
+    or ``m`` itself when no shift lowers its cross-validated error."""
+    best_cv, best = _cv(m, split, cfg), m
+    for steps in DELAY_STEPS:
+        cand = m.copy()
+        cand.terms.append(switch_timing(float(steps)))
+        try:
+            cv = _cv(cand, split, cfg)
+        except (IdentificationError, np.linalg.LinAlgError, ValueError):
+            continue
+        if cv < best_cv:
+            best_cv, best = cv, cand
+    return best
+
+
 def _combine(a: LinearModel, b: LinearModel, b_name: str, dt: float) -> LinearModel:
     """Variant ``a`` with effect ``b_name`` of variant ``b`` added (both extend the same model)."""
     if b_name == "input_delay":
@@ -1245,6 +1279,10 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
                 hf = heldout_clear(split, reduced, both, st.chunk, far, eff.refit_clear_of_reversals)
                 ok = ok and hf is not None and hf.p <= far_level and (not eff.whole_motion or eff.consistency_only or hf.t >= cfg.t_threshold)
                 mg["t_heldout_away_from_reversals"] = round(hf.t, 2) if hf is not None else None
+            if ok and eff.name == "input_delay":
+                hs = _beyond_a_free_switch(both, reduced, split, cfg, st.chunk)
+                ok = hs.p <= level and hs.gain >= cfg.min_gain
+                mg["t_heldout_beyond_a_free_switch"] = round(hs.t, 2)
             marginals[eff.name] = mg
             if not ok:
                 passed = False
