@@ -295,8 +295,8 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     either side.  On held-out rows clear of both the shift gains too little to pass the level a
     first-round test has with the whole catalogue, so no input delay is named.  Without the margin
     that settles the case (every row, or the velocity filter's margin alone) the test still holds
-    because both models are fitted again on the rows it keeps; without that refit too, the delay
-    is named."""
+    because both models are fitted again on the rows it keeps; without that refit too (and
+    without a freely timed switch of friction beside the delay), the delay is named."""
     import dataclasses
 
     from gmsfric.loop import CATALOGUE, LoopConfig, run_loop
@@ -317,6 +317,9 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     # baseline needs no shift either
     assert run_loop(*runs, cfg).effects == []
     monkeypatch.setitem(CATALOGUE, "input_delay", dataclasses.replace(CATALOGUE["input_delay"], refit_clear_of_reversals=False))
+    # tested against the switch of friction at the model's timing, as they were found (a freely
+    # timed switch refuses these late filtered switches on its own)
+    monkeypatch.setattr(select, "_with_switch_timing", lambda m, split, cfg: m)
     assert run_loop(*runs, cfg).effects == ["input_delay"]
 
 
@@ -482,10 +485,11 @@ def test_a_slow_log_gets_a_filter_cut_off_chosen_on_its_estimation_rows(monkeypa
     and the one whose baseline cross-validates best on the estimation rows is kept: nothing is
     named.  At 1 kHz and above only the recipe's cut-off is tried, and a given one is kept.  With
     the recipe's cut-off the delay is also refused because it gains nothing clear of the stops once
-    both models are fitted there; without that refit, it is named."""
+    both models are fitted there, and because a switch of friction at a time of its own explains
+    the lag as well; without either, it is named."""
     import dataclasses
 
-    from gmsfric.loop import CATALOGUE, AxisData, LoopConfig, Preprocessing, run_loop
+    from gmsfric.loop import CATALOGUE, AxisData, LoopConfig, Preprocessing, run_loop, select
     from gmsfric.loop.select import make_split
 
     runs = _campaign_runs(45, "robot-277-clean")
@@ -500,6 +504,7 @@ def test_a_slow_log_gets_a_filter_cut_off_chosen_on_its_estimation_rows(monkeypa
     assert fixed.to_dict()["preprocessing"] == {"cutoff_hz": 10.0, "chosen_by": "given"}
     assert fixed.effects == []
     monkeypatch.setitem(CATALOGUE, "input_delay", dataclasses.replace(CATALOGUE["input_delay"], refit_clear_of_reversals=False))
+    monkeypatch.setattr(select, "_with_switch_timing", lambda m, split, cfg: m)
     assert "input_delay" in run_loop(*runs, recipe).effects
 
     t = np.arange(0.0, 4.0, 1e-3)
