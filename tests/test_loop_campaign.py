@@ -284,8 +284,9 @@ def test_a_stribeck_dip_only_at_reversals_is_refused(monkeypatch):
     assert res.effects == ["stribeck"] and res.final.params()["Fs_minus_Fc"]["value"] < 0
 
 
-@pytest.mark.parametrize("seed, case_id, margin", [(23, "single-012-asymmetric_friction", "filters"), (29, "single-003-asymmetric_friction", "decimation")])
-def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkeypatch, seed, case_id, margin):
+@pytest.mark.parametrize("seed, case_id, margin, unguarded", [(23, "single-012-asymmetric_friction", "filters", "too_small_clear"),
+                                                              (29, "single-003-asymmetric_friction", "decimation", "named")])
+def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkeypatch, seed, case_id, margin, unguarded):
     """Clean-timing Karnopp rigs that stick at every reversal: around those sticks sign(qd) of the
     zero-phase filtered velocity switches at the wrong instant, the force steps ring through the
     filters, and a force shifted by a few samples makes up for it.  Seed 23 `single-012` (fast
@@ -296,7 +297,9 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     first-round test has with the whole catalogue, so no input delay is named.  Without the margin
     that settles the case (every row, or the velocity filter's margin alone) the test still holds
     because both models are fitted again on the rows it keeps; without that refit too (and
-    without a freely timed switch of friction beside the delay), the delay is named."""
+    without a freely timed switch of friction beside the delay), seed 29's delay is named, and
+    seed 23's passes the significance test clear of reversals (t 4.2) but removes less than the
+    minimum gain there (2.9 %), the last guard left."""
     import dataclasses
 
     from gmsfric.loop import CATALOGUE, LoopConfig, run_loop
@@ -320,7 +323,14 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     # tested against the switch of friction at the model's timing, as they were found (a freely
     # timed switch refuses these late filtered switches on its own)
     monkeypatch.setattr(select, "_with_switch_timing", lambda m, split, cfg: m)
-    assert run_loop(*runs, cfg).effects == ["input_delay"]
+    res = run_loop(*runs, cfg)
+    if unguarded == "named":
+        assert res.effects == ["input_delay"]
+    else:
+        (step,) = [s for s in res.steps if s.effect == "input_delay"]
+        ev = step.evidence
+        assert res.effects == [] and ev["t_heldout_away_from_reversals"] >= cfg.t_threshold and ev["validation_gain_away_from_reversals"] < cfg.min_gain
+        assert ev["validation_gain"] >= cfg.min_gain and ev["t_heldout"] >= cfg.t_threshold
 
 
 def test_an_asymmetry_of_viscous_friction_leaves_the_coulomb_level_alone(monkeypatch):
@@ -594,7 +604,9 @@ def test_a_delay_clear_of_reversals_is_tested_on_chunks_cut_for_those_rows(monke
     """A delay of the campaign's seed 59 (``single-097``, a run that reverses often) gaining 32 %
     on held-out data: clear of reversals and stops it gains 28 % at t = 3.0 over the 6 chunks
     that the cut of all rows leaves there (p = 0.015 on 5 degrees of freedom); cut by the same
-    rule applied to those rows, 13 chunks, t = 4.5."""
+    rule applied to those rows, 13 chunks, t = 4.5, it passes at the family-wise level.  Cut
+    coarsely, those rows confirm it only at the nominal level, and it enters on the size of its
+    gain there (more than a third of its gain on all rows) beyond a freely timed switch."""
     from gmsfric.loop import LoopConfig, run_loop
     from gmsfric.loop import select
 
@@ -603,10 +615,13 @@ def test_a_delay_clear_of_reversals_is_tested_on_chunks_cut_for_those_rows(monke
     res = run_loop(*runs, cfg)
     assert "input_delay" in res.effects
     step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
-    assert step.evidence["t_heldout_away_from_reversals"] >= cfg.t_threshold
+    assert step.evidence["t_heldout_away_from_reversals"] >= cfg.t_threshold and "clear_of_reversals" not in step.evidence
     cut_like_all_rows = select.chunk_rows
     monkeypatch.setattr(select, "chunk_rows", lambda split, n: cut_like_all_rows(split, int(split.val_test.sum())))
-    assert "input_delay" not in run_loop(*runs, cfg).effects
+    res = run_loop(*runs, cfg)
+    step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
+    ev = step.evidence
+    assert "clear_of_reversals" in ev and ev["validation_gain_away_from_reversals"] >= ev["validation_gain"] / 3
 
 
 def test_a_delay_must_also_pass_on_all_moving_rows():
@@ -681,7 +696,14 @@ def test_a_delay_must_beat_a_freely_timed_switch_of_friction(monkeypatch):
     assert step.evidence["validation_gain"] >= cfg.min_gain and step.evidence["t_heldout"] >= cfg.t_threshold
     assert step.evidence["t_heldout_beyond_a_free_switch"] < cfg.t_threshold and "switch of friction" in step.reason
     monkeypatch.setattr(select, "_with_switch_timing", lambda m, split, cfg: m)
-    assert run_loop(*runs, cfg).effects == ["input_delay"]
+    res = run_loop(*runs, cfg)
+    if unguarded == "named":
+        assert res.effects == ["input_delay"]
+    else:
+        (step,) = [s for s in res.steps if s.effect == "input_delay"]
+        ev = step.evidence
+        assert res.effects == [] and ev["t_heldout_away_from_reversals"] >= cfg.t_threshold and ev["validation_gain_away_from_reversals"] < cfg.min_gain
+        assert ev["validation_gain"] >= cfg.min_gain and ev["t_heldout"] >= cfg.t_threshold
 
 
 def test_a_real_delay_keeps_its_gain_beyond_a_freely_timed_switch():
@@ -702,3 +724,73 @@ def test_a_real_delay_keeps_its_gain_beyond_a_freely_timed_switch():
     planted = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay") + 0.5 / case["rig"]["f_ctrl"]
     dt = float(np.median(np.diff(runs[0].t)))
     assert abs(res.final.params()["delay_s"]["value"] - planted) <= dt
+
+
+def test_a_delay_the_rows_clear_of_reversals_confirm_only_nominally_enters_when_they_keep_its_share():
+    """A planted 1.4 ms delay (seed 83, rotary, 1 kHz log) passes every held-out test on all moving
+    rows and beats a freely timed switch of friction, but the rows clear of reversals confirm it
+    only at the nominal level (p between the family-wise level and alpha).  Those rows keep more
+    than a third of its gain, as a delay of the whole force does: it is added, within one sample
+    of the planted delay plus the sampling hold."""
+    from gmsfric.loop import LoopConfig, run_loop
+
+    case_id = "single-101-input_delay"
+    runs = _campaign_runs(83, case_id)
+    res = run_loop(*runs, LoopConfig(progress=False, effects=("input_delay",)))
+    assert res.effects == ["input_delay"]
+    step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
+    ev = step.evidence
+    assert "clear_of_reversals" in ev and ev["validation_gain_away_from_reversals"] >= ev["validation_gain"] / 3
+    case = next(c for c in campaign_cases.make_cases(83, emps=False) if c["id"] == case_id)
+    planted = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay") + 0.5 / case["rig"]["f_ctrl"]
+    dt = float(np.median(np.diff(runs[0].t)))
+    assert abs(res.final.params()["delay_s"]["value"] - planted) <= dt
+
+
+def test_a_delay_gaining_mostly_next_to_reversals_is_reported_not_added():
+    """A clean rig (seed 83, static contact in the core, random moves with feedforward): a delay
+    of 2.5 ms passes the held-out tests on all moving rows and beats a freely timed switch of
+    friction, but the rows clear of reversals keep a fifth of its gain (the contact's sticking
+    lag sits next to reversals).  Not added; reported as `unconfirmed` with the delay in ms."""
+    from gmsfric.loop import LoopConfig, run_loop
+
+    runs = _campaign_runs(83, "clean-269-clean")
+    res = run_loop(*runs, LoopConfig(progress=False, effects=("input_delay",)))
+    assert res.effects == []
+    step = next(s for s in res.steps if s.effect == "input_delay")
+    ev = step.evidence
+    assert ev["unconfirmed_clear_of_reversals"] and ev["validation_gain_away_from_reversals"] < ev["validation_gain"] / 3
+    flagged = [d for d in res.diagnostics if d["code"] == "unconfirmed"]
+    assert len(flagged) == 1 and flagged[0]["parameter"] == "input_delay"
+    assert f"{1e3 * step.parameters['delay_s']['value']:.3g} ms" in flagged[0]["message"]
+
+
+def test_a_delay_no_better_than_a_freely_timed_switch_is_not_reported():
+    """A clean rotary rig (seed 83, Karnopp contact of the campaign's own simulator) whose delay
+    candidate fails only the rows clear of reversals, where it is consistent at the nominal level,
+    but gains nothing beyond a freely timed switch of friction: neither added nor reported as
+    unconfirmed."""
+    from gmsfric.loop import LoopConfig, run_loop
+
+    runs = _campaign_runs(83, "clean-275-clean")
+    res = run_loop(*runs, LoopConfig(progress=False, effects=("input_delay",)))
+    assert res.effects == []
+    step = next(s for s in res.steps if s.effect == "input_delay")
+    assert "t_heldout_beyond_a_free_switch" in step.evidence and not step.evidence.get("unconfirmed_clear_of_reversals")
+    assert not [d for d in res.diagnostics if d["code"] == "unconfirmed"]
+
+
+def test_a_delay_must_gain_the_minimum_gain_clear_of_reversals():
+    """A position-force rig (seed 85, nothing delayed): after the position force enters, a delay
+    of about 1.4 ms passes the held-out tests on all moving rows (gain about 8 %) and, at t near
+    4, on the rows clear of reversals, where it removes only about 3 % of the error.  A delay of
+    the whole force gains there as it does everywhere the axis accelerates (0.12-0.97 over the
+    delays named on seeds 79-83): held to the minimum gain there too, it is not added."""
+    from gmsfric.loop import LoopConfig, run_loop
+
+    runs = _campaign_runs(85, "single-077-position_dependent_force")
+    res = run_loop(*runs, LoopConfig(progress=False, effects=("position_dependent_force", "input_delay")))
+    assert res.effects == ["position_dependent_force"]
+    delay_steps = [s for s in res.steps if s.effect == "input_delay" and "validation_gain_away_from_reversals" in s.evidence]
+    assert delay_steps and all(not s.accepted for s in delay_steps)
+    assert any(s.evidence["validation_gain"] >= 0.05 and s.evidence["validation_gain_away_from_reversals"] < 0.05 for s in delay_steps)

@@ -117,6 +117,7 @@ def run_case(case: dict[str, Any], out: Path, gmsfric: list[str], timeout: float
         o = json.loads(out_json.read_text())
         res.update(status="ok", error="", accepted=list(o["final"]["effects"]),
                    alignment=bool(o.get("alignment", {}).get("applied", False)),
+                   unconfirmed=sorted({d["parameter"] for d in o.get("diagnostics", []) if d.get("code") == "unconfirmed"}),
                    loop_errors={"baseline": [o["baseline"]["estimation_error_pct"], o["baseline"]["validation_error_pct"]],
                                 "final": [o["final"]["estimation_error_pct"], o["final"]["validation_error_pct"]]})
     res_path.write_text(json.dumps(res, indent=1))

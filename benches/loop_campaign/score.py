@@ -99,7 +99,23 @@ def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
         "min_recall_detectable_moving": min_recall_moving,
         "min_recall_detectable_beyond_null": min_recall_null,
         "alignment_rate": sum(bool(r.get("alignment")) for r in done) / len(done) if done else float("nan"),
+        "unconfirmed": _unconfirmed(done),
     }
+
+
+def _unconfirmed(done: list[dict[str, Any]]) -> dict[str, list[int]]:
+    """Per effect reported ``unconfirmed`` (not added): ``[on cases where it was planted and
+    detectable, on cases where it was not planted]``."""
+    out: dict[str, list[int]] = {}
+    for r in done:
+        for eff in r.get("unconfirmed", []):
+            row = out.setdefault(eff, [0, 0])
+            t = r.get("truth", {}).get("effects", {}).get(eff)
+            if t is not None and t["detectable"]:
+                row[0] += 1
+            elif eff not in r["planted"]:
+                row[1] += 1
+    return out
 
 
 def confusion(results: list[dict[str, Any]]) -> tuple[list[str], list[tuple[str, list[int]]]]:
@@ -189,6 +205,8 @@ def format_report(results: list[dict[str, Any]], summary: dict[str, Any], wall_s
     if pn:
         out.append(f"  with both detectable beyond the loop's nulls: {_pct(pn[0], pn[1])}")
     out.append(f"Half-sample alignment applied (not counted as an effect): {100 * s['alignment_rate']:.0f} % of completed runs")
+    for eff, (real, unplanted) in sorted(s.get("unconfirmed", {}).items()):
+        out.append(f"Reported unconfirmed, not added ({eff}): {real} where planted and detectable, {unplanted} where not planted")
     out.append("")
     fails = [r for r in sorted(results, key=lambda r: r["id"]) if r["status"] != "ok"]
     out.append(f"Failures ({len(fails)}):")

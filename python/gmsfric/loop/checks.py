@@ -91,6 +91,7 @@ def check_result(result: "LoopResult") -> Findings:
                            "is the position column in the declared unit (--position-unit)?", "position")
     _check_travel(found, result)
     _check_held_back(found, result)
+    _check_unconfirmed(found, result)
     error = result.split.errors_moving(result.final)[0]
     if error > POOR_FIT_PCT:
         found.add("poor_fit", f"the final model leaves {error:.0f} % of the force unexplained (relative rms error on the moving rows of the estimation run): "
@@ -142,6 +143,32 @@ def _check_held_back(found: Findings, result: "LoopResult") -> None:
                                f"t = {ev['t_heldout']:.1f}) but was not added, to keep the baseline plausible ({why}): either the baseline had absorbed it "
                                "(a run that moves more one way than the other lets the Coulomb level stand in for an offset) or it explains friction away; "
                                "compare the two models' parameters (the step's in the JSON) before trusting either", effect)
+
+
+def _check_unconfirmed(found: Findings, result: "LoopResult") -> None:
+    """A delay that passed every test on all moving rows and beat a freely timed switch of
+    friction, but that the held-out rows clear of reversals and stops support only at the nominal
+    level, with less than the minimum gain or (when only nominally significant) less than
+    :data:`~gmsfric.loop.select.DELAY_CLEAR_SHARE` of its gain on all rows, looks like a sticking
+    contact's lag next to reversals as much as a delay: the loop does not add it, and shows the
+    user its timing and evidence (a step or frequency-response test of the drive settles it)."""
+    best = None
+    for step in result.steps:
+        ev = step.evidence
+        if step.accepted or step.effect in result.effects or not ev.get("unconfirmed_clear_of_reversals") or "replaces" in ev:
+            continue
+        if best is None or ev["t_heldout"] > best.evidence["t_heldout"]:
+            best = step
+    if best is None:
+        return
+    ev = best.evidence
+    delay = best.parameters.get("delay_s", {}).get("value", float("nan"))
+    found.add("unconfirmed", f"input_delay of {1e3 * delay:.3g} ms passed the held-out tests on all moving rows (gain {100 * ev['validation_gain']:.1f} %, "
+                             f"t = {ev['t_heldout']:.1f}; beyond a freely timed switch of friction {100 * ev['validation_gain_beyond_a_free_switch']:.1f} %, "
+                             f"t = {ev['t_heldout_beyond_a_free_switch']:.1f}) but on the rows clear of reversals and stops it gains only "
+                             f"{100 * ev['validation_gain_away_from_reversals']:.1f} % (t = {ev['t_heldout_away_from_reversals']:.1f}): "
+                             "not added, a sticking contact's lag at reversals can look like this; a step or frequency-response test of the drive settles it",
+              "input_delay")
 
 
 def _check_travel(found: Findings, result: "LoopResult") -> None:
