@@ -696,14 +696,7 @@ def test_a_delay_must_beat_a_freely_timed_switch_of_friction(monkeypatch):
     assert step.evidence["validation_gain"] >= cfg.min_gain and step.evidence["t_heldout"] >= cfg.t_threshold
     assert step.evidence["t_heldout_beyond_a_free_switch"] < cfg.t_threshold and "switch of friction" in step.reason
     monkeypatch.setattr(select, "_with_switch_timing", lambda m, split, cfg: m)
-    res = run_loop(*runs, cfg)
-    if unguarded == "named":
-        assert res.effects == ["input_delay"]
-    else:
-        (step,) = [s for s in res.steps if s.effect == "input_delay"]
-        ev = step.evidence
-        assert res.effects == [] and ev["t_heldout_away_from_reversals"] >= cfg.t_threshold and ev["validation_gain_away_from_reversals"] < cfg.min_gain
-        assert ev["validation_gain"] >= cfg.min_gain and ev["t_heldout"] >= cfg.t_threshold
+    assert run_loop(*runs, cfg).effects == ["input_delay"]
 
 
 def test_a_real_delay_keeps_its_gain_beyond_a_freely_timed_switch():

@@ -1108,9 +1108,10 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
         ev["t_heldout_away_from_reversals"] = round(h_far.t, 2)
         ev["validation_gain_away_from_reversals"] = round(h_far.gain, 5)
         # a whole-motion effect must also gain there by the minimum gain asked of it on all rows
-        if h_far.p > far_level or (eff.whole_motion and not eff.consistency_only and (h_far.t < cfg.t_threshold or h_far.gain < cfg.min_gain)):
+        sized = eff.whole_motion and not eff.consistency_only
+        if h_far.p > far_level or (sized and (h_far.t < cfg.t_threshold or h_far.gain < cfg.min_gain)):
             far_reason = (f"not confirmed away from reversals (gain {100 * h_far.gain:.2f} %, t = {h_far.t:.2f}, p = {h_far.p:.2g}; "
-                          f"level {far_level:.2g}, minimum gain {100 * cfg.min_gain:.2f} %): "
+                          f"level {far_level:.2g}" + (f", minimum gain {100 * cfg.min_gain:.2f} %): " if sized else "): ")
                           + ("it acts on the whole motion, and a gain only where the axis reverses or sticks is the switch of friction"
                              if eff.whole_motion else "a dip only where the axis reverses or sticks is the switch of friction seen through the filters"))
             reasons.append(far_reason)
