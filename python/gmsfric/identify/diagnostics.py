@@ -33,7 +33,7 @@ CODES = {
     "units": "a scale implausible for a servo axis (sample rate, speed): a column in another unit than declared?",
     "delay_ambiguous": "another delay fits about as well (a periodic excitation's lines cannot tell delays a whole period apart)",
     "held_back": "an effect the data support, kept out because it would make the baseline's physics implausible",
-    "unconfirmed": "an effect that passed the tests on all rows but that the rows where it should show alone confirm only at the nominal level",
+    "unconfirmed": "an effect that passed the tests on all rows but that the rows where it should show on its own do not confirm (too small a gain there)",
 }
 
 
