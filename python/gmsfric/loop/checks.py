@@ -26,7 +26,7 @@ from ..identify.diagnostics import Findings, check_saturation, fraction_at_limit
 
 if TYPE_CHECKING:
     from ..system import PID, Cascade
-    from .results import LoopResult
+    from .results import LoopResult, Step
 
 #: Relative rms error (%) of the final model on the moving rows of the estimation run above which
 #: it explains too little of the force for its parameters to describe the axis.  On all rows the
@@ -120,6 +120,19 @@ def check_result(result: "LoopResult") -> Findings:
     return found
 
 
+def _strongest_refused(result: "LoopResult", flag: str) -> dict[str, "Step"]:
+    """Per effect left out of the final model, its refused entering step (exchanges left out)
+    whose evidence carries ``flag``, the one with the largest held-out t."""
+    best: dict[str, Step] = {}
+    for step in result.steps:
+        ev = step.evidence
+        if step.accepted or step.effect in result.effects or not ev.get(flag) or "replaces" in ev:
+            continue
+        if step.effect not in best or ev["t_heldout"] > best[step.effect].evidence["t_heldout"]:
+            best[step.effect] = step
+    return best
+
+
 def _check_held_back(found: Findings, result: "LoopResult") -> None:
     """An effect that passed every test of the data and was refused only because it moves the
     baseline's physics too far (``max_parameter_ratio``, a negative mass or viscosity) is either
@@ -127,18 +140,11 @@ def _check_held_back(found: Findings, result: "LoopResult") -> None:
     other, an offset the Coulomb level stood in for) or an effect that explains friction away:
     the data alone cannot tell, so the user is shown the effect and its strongest held-out
     evidence."""
-    best: dict[str, dict] = {}
-    for step in result.steps:
+    for effect, step in _strongest_refused(result, "held_back_by_plausibility").items():
         ev = step.evidence
-        if step.accepted or step.effect in result.effects or not ev.get("held_back_by_plausibility") or "replaces" in ev:
-            continue
-        if step.effect not in best or ev["t_heldout"] > best[step.effect]["evidence"]["t_heldout"]:
-            best[step.effect] = {"evidence": ev, "reason": step.reason}
-    for effect, held in best.items():
-        ev = held["evidence"]
         after = ev["moving_rows_error_pct"]["validation"]
         before = after / max(1.0 - ev["validation_gain"], 1e-12)
-        why = held["reason"].removeprefix("implausible baseline: ")
+        why = step.reason.removeprefix("implausible baseline: ")
         found.add("held_back", f"{effect} passed every test of the data (held-out error {before:.3g} -> {after:.3g} % on the {ev['judged_on']}, "
                                f"t = {ev['t_heldout']:.1f}) but was not added, to keep the baseline plausible ({why}): either the baseline had absorbed it "
                                "(a run that moves more one way than the other lets the Coulomb level stand in for an offset) or it explains friction away; "
@@ -152,13 +158,7 @@ def _check_unconfirmed(found: Findings, result: "LoopResult") -> None:
     :data:`~gmsfric.loop.select.DELAY_CLEAR_SHARE` of its gain on all rows, looks like a sticking
     contact's lag next to reversals as much as a delay: the loop does not add it, and shows the
     user its timing and evidence (a step or frequency-response test of the drive settles it)."""
-    best = None
-    for step in result.steps:
-        ev = step.evidence
-        if step.accepted or step.effect in result.effects or not ev.get("unconfirmed_clear_of_reversals") or "replaces" in ev:
-            continue
-        if best is None or ev["t_heldout"] > best.evidence["t_heldout"]:
-            best = step
+    best = _strongest_refused(result, "unconfirmed_clear_of_reversals").get("input_delay")
     if best is None:
         return
     ev = best.evidence
