@@ -28,7 +28,11 @@ The loop runs in named stages (:func:`run_loop`):
    * the false-effect rate is held across the catalogue and all rounds: round ``r`` spends
      ``alpha / 2**r`` of the family-wise level, split equally (Bonferroni) over the ``K``
      effects it tests, so an effect enters only with ``p <= alpha / (2**r K)``; the sum over
-     rounds stays below ``alpha``;
+     rounds stays below ``alpha``.  ``K`` counts the effects that pass the checks made on the
+     estimation run alone (a physical fit, a cross-validated gain, a lower BIC, a plausible
+     baseline; :func:`_screened`): the others are refused whatever the held-out run shows, and
+     since the two runs' noise is independent, screening on the one does not bias the test on
+     the other;
    * an effect that acts on the whole motion (a delay, a resonance) must pass the same test on the
      held-out rows clear of reversals and stops: what gains only there is the switch of friction
      seen through the velocity filter;
@@ -1013,7 +1017,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                     f = fnd.get(eff.evidence)
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
                     st.steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
-            level = cfg.level(rnd, len(applicable))
+            level = cfg.level(rnd, sum(_screened(creep if eff.creeping else st, cfg, m, nulls[eff.name], gain_cv) for gain_cv, eff, m in cands))
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
                 step, h, _ = _test_candidate(creep if eff.creeping else st, cfg, rnd, eff, m, nulls[eff.name], gain_cv, level, far, fnd)
@@ -1060,13 +1064,26 @@ def _candidate(m: LinearModel, effect: str, others: list[str], st: _State, cfg: 
     return m, null, 1.0 - _cv(m, st.split, cfg, by_travel) / _cv(null, st.split, cfg, by_travel)
 
 
+def _delta_bic(m: LinearModel, null: LinearModel, split: Split) -> float:
+    """BIC of fitted ``m`` minus that of fitted ``null`` on the moving estimation rows."""
+    n_est = int(split.est_fit.sum())
+    return float(n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est))
+
+
+def _screened(st: _State, cfg: LoopConfig, m: LinearModel, null: LinearModel, gain_cv: float) -> bool:
+    """Whether a candidate ``m`` (tested against fitted ``null``) passes every check made on the
+    estimation run alone: a cross-validated gain, a lower BIC and a plausible baseline.  Only
+    those candidates can enter, so only they share a round's level."""
+    _fit(m, st.split)
+    return gain_cv > 0 and _delta_bic(m, null, st.split) < 0 and _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)[1] is None
+
+
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
                     level: float, far: ClearRows, fnd: dict[str, Finding]) -> tuple[Step, HeldOut, HeldOut]:
     """The tests of a candidate model ``m`` whose effect ``eff`` is tested against ``null``
     (fitted): its step (rejected; ``reason`` empty when every test passes), the held-out test
     against the null and the one against the current model."""
     split = st.split
-    n_est = int(split.est_fit.sum())
     _fit(m, split)
     e_est, e_val = split.errors(m)
     h = heldout(split, null, m, st.chunk, effect=eff.name)
@@ -1075,7 +1092,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     h_cur = heldout(split, st.model, m, st.chunk, effect=eff.name) if st.model.effects or eff.null is not None else h
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
     h_far = heldout_clear(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
-    dbic = n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est)
+    dbic = _delta_bic(m, null, split)
     change, implausible = _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)
     ev: dict[str, Any] = {}
     f = fnd.get(eff.evidence)
@@ -1150,7 +1167,8 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
     follows the position), and then keep the other out: given the stand-in, the other gains
     little.  The replacement is fitted on the model without the accepted effect, every grid
     parameter chosen again, and tested as an entering effect is (against the same model without
-    it, at ``level(rnd, X)`` for the ``X`` exchanges tried); the model after the exchange must
+    it, at ``level(rnd, X)`` for the ``X`` exchanges tried that pass the estimation-only checks,
+    :func:`_screened`); the model after the exchange must
     also beat the current one on held-out data and in cross-validated error.  The exchange that
     gains most on the current model is made, then joint refit and backward elimination.  Returns
     whether one was made."""
@@ -1171,7 +1189,7 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
                 continue
             m, null, gain_cv = _candidate(m, name, list(base.effects), se, cfg)
             trials.append((out, eff, m, null, gain_cv))
-    level = cfg.level(rnd, len(trials))
+    level = cfg.level(rnd, sum(_screened(creep if eff.creeping else st, cfg, m, null, gain_cv) for _, eff, m, null, gain_cv in trials))
     best: tuple[float, Step, LinearModel, str] | None = None
     for out, eff, m, null, gain_cv in trials:
         se = creep if eff.creeping else st
@@ -1388,14 +1406,14 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
         "final_moving_rows_error_pct": {"estimation": round(fe, 4), "validation": round(fv_, 4)},
     }
     res.selection = {
-        "rule": "forward selection; an effect enters when its held-out chunk test (Newey-West t) has p <= alpha / (2**round x effects tested), "
+        "rule": "forward selection; an effect enters when its held-out chunk test (Newey-West t) has p <= alpha / (2**round x effects tested, counting those that pass the estimation-only checks: cross-validated gain, BIC, plausible baseline), "
                 "its held-out gain >= min_gain, BIC decreases and the baseline parameters stay plausible (a delay or a resonance must also pass "
                 "on the held-out rows clear of reversals and stops); the best held-out gain enters; "
                 "then joint refit of every accepted effect's grid parameters and backward elimination (stay with p <= alpha); "
                 "when no single effect passes, a pair of effects enters when each passes given the other (p <= alpha / (2**(round + 1) x pairs "
                 "tried), held-out gain >= min_gain) and the pair passes the BIC and plausibility tests; when no pair passes either, an accepted "
                 "effect is replaced by another catalogue effect that passes the same tests in its place (p <= alpha / (2**(round + 2) x "
-                "exchanges tried)) and beats the current model on held-out data and in cross-validated error",
+                "exchanges tried that pass them)) and beats the current model on held-out data and in cross-validated error",
         "alpha": cfg.alpha, "t_threshold": cfg.t_threshold, "min_gain": cfg.min_gain, "max_parameter_ratio": cfg.max_parameter_ratio,
         "chunk_rows": st.chunk,
     }
