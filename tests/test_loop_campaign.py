@@ -814,6 +814,7 @@ def test_a_rounds_level_is_shared_only_by_candidates_the_estimation_run_admits(m
     admitted = [s for s in first if not any(why in s.reason for why in estimation_only)]
     drift = next(s for s in first if s.effect == "friction_drift")
     assert drift.accepted and 1 <= len(admitted) < len(first)
+    assert drift.evidence["level_shared_by"] == len(admitted)
     assert drift.evidence["level"] == pytest.approx(cfg.level(1, len(admitted)), rel=1e-2)
     assert drift.evidence["p_heldout"] > cfg.level(1, len(first))
     monkeypatch.setattr(select, "_screened", lambda *args: True)

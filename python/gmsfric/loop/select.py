@@ -1017,10 +1017,12 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                     f = fnd.get(eff.evidence)
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
                     st.steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
-            level = cfg.level(rnd, sum(_screened(creep if eff.creeping else st, cfg, m, nulls[eff.name], gain_cv) for gain_cv, eff, m in cands))
+            screened = sum(_screened(creep if eff.creeping else st, cfg, m, nulls[eff.name], gain_cv) for gain_cv, eff, m in cands)
+            level = cfg.level(rnd, screened)
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
                 step, h, _ = _test_candidate(creep if eff.creeping else st, cfg, rnd, eff, m, nulls[eff.name], gain_cv, level, far, fnd)
+                step.evidence["level_shared_by"] = screened
                 st.steps.append(step)
                 if not step.reason:
                     passing.append((h.gain, step, m))
@@ -1168,10 +1170,9 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
     little.  The replacement is fitted on the model without the accepted effect, every grid
     parameter chosen again, and tested as an entering effect is (against the same model without
     it, at ``level(rnd, X)`` for the ``X`` exchanges tried that pass the estimation-only checks,
-    :func:`_screened`); the model after the exchange must
-    also beat the current one on held-out data and in cross-validated error.  The exchange that
-    gains most on the current model is made, then joint refit and backward elimination.  Returns
-    whether one was made."""
+    :func:`_screened`); the model after the exchange must also beat the current one on held-out
+    data and in cross-validated error.  The exchange that gains most on the current model is
+    made, then joint refit and backward elimination.  Returns whether one was made."""
     split, dt = st.split, st.split.est.dt
     creep = _creeping(st) if any(CATALOGUE[n].creeping for n in names) else st
     trials: list[tuple[str, Effect, LinearModel, LinearModel, float]] = []
@@ -1189,12 +1190,14 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
                 continue
             m, null, gain_cv = _candidate(m, name, list(base.effects), se, cfg)
             trials.append((out, eff, m, null, gain_cv))
-    level = cfg.level(rnd, sum(_screened(creep if eff.creeping else st, cfg, m, null, gain_cv) for _, eff, m, null, gain_cv in trials))
+    screened = sum(_screened(creep if eff.creeping else st, cfg, m, null, gain_cv) for _, eff, m, null, gain_cv in trials)
+    level = cfg.level(rnd, screened)
     best: tuple[float, Step, LinearModel, str] | None = None
     for out, eff, m, null, gain_cv in trials:
         se = creep if eff.creeping else st
         step, _, h_cur = _test_candidate(se, cfg, rnd, eff, m, null, gain_cv, level, far, fnd)
         step.evidence["replaces"] = out
+        step.evidence["level_shared_by"] = screened
         by_travel = _by_travel(m, se.model)
         if not _cv(m, se.split, cfg, by_travel) < _cv(se.model, se.split, cfg, by_travel):
             step.reason = "; ".join(filter(None, [step.reason, f"no lower cross-validated error than the model with {out}"]))
