@@ -1281,24 +1281,28 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     the estimation rows is fitted jointly, the grid parameters of both chosen again together
     (each was chosen alone, given a model without the other); it enters when *each* of the two passes the held-out
     test given the other, with the minimum gain (so that a real effect cannot carry a false one in),
-    at the level of the next round split over the pairs tried, and the pair together passes the
-    BIC and the plausibility of the baseline.  Returns whether a pair entered."""
+    at the level of the next round split over the pairs that pass the estimation-only checks
+    (a physical fit of both, a lower BIC, a plausible baseline; a pair left out early for gaining
+    too little on held-out data counts too), and the pair together passes the BIC and the
+    plausibility of the baseline.  Returns whether a pair entered."""
     dt = st.split.est.dt
     screened = [(eff, m) for g, eff, m in cands if g > 0]
     pairs = [(screened[i], screened[j]) for i in range(len(screened)) for j in range(i + 1, len(screened))]
     if not pairs:
         return False
-    level = cfg.level(rnd + 1, len(pairs))
     creep = _creeping(st) if any(eff.creeping for eff, _ in screened) else st
-    best: tuple[float, list[Step], LinearModel] | None = None
+    fitted: list[tuple[Effect, Effect, _State, LinearModel]] = []
+    shared = 0  # the pairs that could enter, whatever the held-out tests show
     for (ea, ma), (eb, mb) in pairs:
         prog.update(note=f"round {rnd}: {ea.name} + {eb.name}")
         ps = creep if ea.creeping or eb.creeping else st
         split = ps.split
-        n_est = int(split.est_fit.sum())
         try:
             both = _fit(_combine(ma, mb, eb.name, dt), split)
-            if any(e.check(both, split.est) is not None for e in (ea, eb)) or heldout(split, ps.model, both, st.chunk).gain < cfg.min_gain:
+            if any(e.check(both, split.est) is not None for e in (ea, eb)):
+                continue
+            if heldout(split, ps.model, both, st.chunk).gain < cfg.min_gain:
+                shared += 1  # left out by a held-out test, so it keeps its share of the level
                 continue
             # each member was fitted alone, partly absorbing the other: choose both again together
             both = _fit(_rechoose(both, [ea.name, eb.name], ps, cfg), split)
@@ -1306,10 +1310,18 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
                 continue
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             continue
+        if _delta_bic(both, ps.model, split) >= 0 or _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg)[1] is not None:
+            continue
+        shared += 1
+        fitted.append((ea, eb, ps, both))
+    level = cfg.level(rnd + 1, shared)
+    best: tuple[float, list[Step], LinearModel] | None = None
+    for ea, eb, ps, both in fitted:
+        split = ps.split
         h = heldout(split, ps.model, both, st.chunk)
-        dbic = n_est * np.log(_sse(both, split) / _sse(ps.model, split)) + (both.n_params - ps.model.n_params) * np.log(n_est)
-        change, implausible = _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg)
-        if h.gain < cfg.min_gain or dbic >= 0 or implausible is not None or (best is not None and h.gain <= best[0]):
+        dbic = _delta_bic(both, ps.model, split)
+        change, _ = _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg)
+        if h.gain < cfg.min_gain or (best is not None and h.gain <= best[0]):
             continue
         marginals: dict[str, dict[str, Any]] = {}
         passed = True
@@ -1343,7 +1355,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             if f is not None:
                 ev["residual_test"] = f.as_dict()
             ev.update(entered_with=other.name, validation_gain=round(h.gain, 5), t_heldout=round(h.t, 2), p_heldout=float(f"{h.p:.3g}"),
-                      given_other=marginals[eff.name], level=float(f"{level:.3g}"), delta_bic=round(float(dbic), 1), baseline_parameters=change,
+                      given_other=marginals[eff.name], level=float(f"{level:.3g}"), level_shared_by=shared, delta_bic=round(float(dbic), 1), baseline_parameters=change,
                       moving_rows_error_pct={"estimation": round(split.errors_moving(both)[0], 4), "validation": round(h.error_after, 4)})
             mg = marginals[eff.name]
             reason = (f"entered together with {other.name} (neither passes alone): held-out error {h.error_before:.3f} -> {h.error_after:.3f} % "
@@ -1414,7 +1426,7 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
                 "on the held-out rows clear of reversals and stops); the best held-out gain enters; "
                 "then joint refit of every accepted effect's grid parameters and backward elimination (stay with p <= alpha); "
                 "when no single effect passes, a pair of effects enters when each passes given the other (p <= alpha / (2**(round + 1) x pairs "
-                "tried), held-out gain >= min_gain) and the pair passes the BIC and plausibility tests; when no pair passes either, an accepted "
+                "tried that pass the estimation-only checks), held-out gain >= min_gain) and the pair passes the BIC and plausibility tests; when no pair passes either, an accepted "
                 "effect is replaced by another catalogue effect that passes the same tests in its place (p <= alpha / (2**(round + 2) x "
                 "exchanges tried that pass them)) and beats the current model on held-out data and in cross-validated error",
         "alpha": cfg.alpha, "t_threshold": cfg.t_threshold, "min_gain": cfg.min_gain, "max_parameter_ratio": cfg.max_parameter_ratio,
