@@ -1286,11 +1286,11 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     too little on held-out data counts too), and the pair together passes the BIC and the
     plausibility of the baseline.  Returns whether a pair entered."""
     dt = st.split.est.dt
-    screened = [(eff, m) for g, eff, m in cands if g > 0]
-    pairs = [(screened[i], screened[j]) for i in range(len(screened)) for j in range(i + 1, len(screened))]
+    gaining = [(eff, m) for g, eff, m in cands if g > 0]
+    pairs = [(gaining[i], gaining[j]) for i in range(len(gaining)) for j in range(i + 1, len(gaining))]
     if not pairs:
         return False
-    creep = _creeping(st) if any(eff.creeping for eff, _ in screened) else st
+    creep = _creeping(st) if any(eff.creeping for eff, _ in gaining) else st
     fitted: list[tuple[Effect, Effect, _State, LinearModel]] = []
     shared = 0  # the pairs that could enter, whatever the held-out tests show
     for (ea, ma), (eb, mb) in pairs:
