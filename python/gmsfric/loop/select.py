@@ -1291,7 +1291,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     if not pairs:
         return False
     creep = _creeping(st) if any(eff.creeping for eff, _ in gaining) else st
-    fitted: list[tuple[Effect, Effect, _State, LinearModel]] = []
+    fitted: list[tuple[Effect, Effect, _State, LinearModel, float, dict[str, Any]]] = []
     shared = 0  # the pairs that could enter, whatever the held-out tests show
     for (ea, ma), (eb, mb) in pairs:
         prog.update(note=f"round {rnd}: {ea.name} + {eb.name}")
@@ -1310,17 +1310,17 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
                 continue
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             continue
-        if _delta_bic(both, ps.model, split) >= 0 or _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg)[1] is not None:
+        dbic = _delta_bic(both, ps.model, split)
+        change, implausible = _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg)
+        if dbic >= 0 or implausible is not None:
             continue
         shared += 1
-        fitted.append((ea, eb, ps, both))
+        fitted.append((ea, eb, ps, both, dbic, change))
     level = cfg.level(rnd + 1, shared)
     best: tuple[float, list[Step], LinearModel] | None = None
-    for ea, eb, ps, both in fitted:
+    for ea, eb, ps, both, dbic, change in fitted:
         split = ps.split
         h = heldout(split, ps.model, both, st.chunk)
-        dbic = _delta_bic(both, ps.model, split)
-        change, _ = _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg)
         if h.gain < cfg.min_gain or (best is not None and h.gain <= best[0]):
             continue
         marginals: dict[str, dict[str, Any]] = {}
