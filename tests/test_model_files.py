@@ -20,7 +20,7 @@ def full_axis() -> g.AxisModel:
         g.Effects(
             asymmetry=(0.3, -37.0),
             position_force=g.PositionSeries.fourier([2.5e-3], 2, [0.1, 0.2, 0.3, 0.4]),
-            position_friction=g.PositionSeries.legendre(-0.1, 0.1, [0.0, 1.0, -0.5]),
+            position_friction=g.PositionSeries.legendre(-0.1, 0.1, [0.0, 1.0, -0.5], beyond="linear"),
             heating=g.Heating(30.0, -5.0, 0.0),
             drift=g.Drift("exponential", 25.0, 1.0, 2.0),
             blocks=g.MaxwellSlip([1e6, 2e5], [1.0, 2.0]),
@@ -101,3 +101,19 @@ def test_save_model_of_an_axis_model_never_relabels_it_and_keeps_covariance_and_
     assert doc["provenance"]["command"] == "test" and doc["provenance"]["note"] == "kept"
     back = g.load_model(path)
     assert back.covariance is not None and back.units == rot.units and back.plant == rot.plant
+
+
+def test_a_series_beyond_its_travel_keeps_its_rule_and_older_files_hold_it(tmp_path: Path) -> None:
+    import json
+
+    doc = full_axis().model_document()
+    assert doc["options"]["effects.position_friction.beyond"] == "linear"
+    del doc["options"]["effects.position_friction.beyond"]  # as written before the option existed
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    old = g.load_model(tmp_path / "old.json").effects.position_friction
+    assert old is not None and old.beyond == "hold"
+    assert old(np.array([0.5]))[0] == pytest.approx(old(np.array([0.1]))[0])
+    doc["options"]["effects.position_friction.beyond"] = "quadratic"
+    (tmp_path / "bad.json").write_text(json.dumps(doc))
+    with pytest.raises(g.DataError, match="effects.position_friction.beyond"):
+        g.load_model(tmp_path / "bad.json")

@@ -44,6 +44,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .system import ClosedLoopResult, RunOptions
 
 SeriesKind = Literal["legendre", "fourier", "table"]
+Beyond = Literal["hold", "linear"]
 
 
 def _floats(name: str, values: Any) -> tuple[float, ...]:
@@ -59,12 +60,42 @@ def _floats(name: str, values: Any) -> tuple[float, ...]:
     return tuple(float(v) for v in arr)
 
 
+def legendre_beyond(x: ArrayLike, coef: ArrayLike, linear: bool) -> NDArray[np.float64]:
+    """A Legendre series over the travel, and what it does beyond it.
+
+    Parameters
+    ----------
+    x : array_like
+        Positions scaled to the travel (``-1`` and ``1`` at its ends; beyond them outside it).
+    coef : array_like
+        Coefficients of ``P_0, P_1, ...``.
+    linear : bool
+        Beyond the travel, let the degree-1 term go on (``coef[1]`` per unit of ``x``, the
+        slope of the series' best straight line over the travel) while the curved terms hold
+        their edge values; otherwise the whole series holds its edge value.
+
+    Returns
+    -------
+    ndarray
+        ``sum_d coef[d] P_d(x)`` within the travel, continued as chosen beyond it.
+    """
+    x = np.asarray(x, dtype=float)
+    c = np.asarray(coef, dtype=float)
+    xc = np.clip(x, -1.0, 1.0)
+    out = np.polynomial.legendre.legval(xc, c)
+    if linear and c.size > 1:
+        out = out + c[1] * (x - xc)
+    return out
+
+
 @dataclass(frozen=True)
 class PositionSeries:
     """A function of position ``g(q)``: a series or a table.
 
     Use the constructors: :meth:`legendre` (smooth: springs, gravity, wear along the travel),
     :meth:`fourier` (periodic: cogging, screw pitch), :meth:`table` (measured, interpolated).
+    ``beyond`` says what a Legendre series does beyond its travel: ``"hold"`` its edge value or
+    ``"linear"`` go on with the slope of its degree-1 term.
     """
 
     kind: SeriesKind
@@ -76,9 +107,11 @@ class PositionSeries:
     q0: float = 0.0
     dq: float = 0.0
     values: tuple[float, ...] = ()
+    beyond: Beyond = "hold"
 
     def __post_init__(self) -> None:
         choice("kind", self.kind, ("legendre", "fourier", "table"))
+        choice("beyond", self.beyond, ("hold", "linear"))
         for name in ("coef", "periods", "values"):
             object.__setattr__(self, name, _floats(name, getattr(self, name)))
         for name in ("lo", "hi", "q0", "dq"):
@@ -88,9 +121,13 @@ class PositionSeries:
         _gmsfric.AxisSpec(_gmsfric.PlantSpec(1.0, 0.0, 0.0, 0.0, 1.0), None, position_force=self.core_args())
 
     @classmethod
-    def legendre(cls, lo: float, hi: float, coef: ArrayLike) -> "PositionSeries":
-        """``sum_d coef[d] P_d(x)``, ``x = 2 (q - lo)/(hi - lo) - 1`` clipped to ``[-1, 1]``."""
-        return cls("legendre", coef=tuple(as_array("coef", coef)), lo=lo, hi=hi)
+    def legendre(cls, lo: float, hi: float, coef: ArrayLike, beyond: Beyond = "hold") -> "PositionSeries":
+        """``sum_d coef[d] P_d(x)``, ``x = 2 (q - lo)/(hi - lo) - 1`` over the travel ``[lo, hi]``.
+
+        Beyond the travel the series is held at its edge value (``beyond="hold"``), or its
+        degree-1 term goes on while the curved terms hold (``"linear"``: a spring or a weight
+        goes on growing, a bump does not)."""
+        return cls("legendre", coef=tuple(as_array("coef", coef)), lo=lo, hi=hi, beyond=beyond)
 
     @classmethod
     def fourier(cls, periods: ArrayLike, harmonics: int, coef: ArrayLike) -> "PositionSeries":
@@ -112,7 +149,7 @@ class PositionSeries:
     def core_args(self) -> dict[str, Any]:
         """The series as the core's constructor takes it."""
         if self.kind == "legendre":
-            return {"kind": "legendre", "lo": self.lo, "hi": self.hi, "coef": list(self.coef)}
+            return {"kind": "legendre", "lo": self.lo, "hi": self.hi, "coef": list(self.coef), "linear_beyond": self.beyond == "linear"}
         if self.kind == "fourier":
             return {"kind": "fourier", "periods": list(self.periods), "harmonics": self.harmonics, "coef": list(self.coef)}
         return {"kind": "table", "q0": self.q0, "dq": self.dq, "values": list(self.values)}
@@ -121,8 +158,7 @@ class PositionSeries:
         """``g(q)`` on positions ``q`` (numpy; the core evaluates the same series in simulations)."""
         q = as_array("q", q)
         if self.kind == "legendre":
-            x = np.clip(2.0 * (q - self.lo) / (self.hi - self.lo) - 1.0, -1.0, 1.0)
-            return np.polynomial.legendre.legval(x, np.asarray(self.coef))
+            return legendre_beyond(2.0 * (q - self.lo) / (self.hi - self.lo) - 1.0, self.coef, self.beyond == "linear")
         if self.kind == "fourier":
             out = np.zeros_like(q)
             c = iter(self.coef)
@@ -487,6 +523,8 @@ def _encode_axis(m: AxisModel) -> tuple[dict[str, tuple[Any, str]], dict[str, An
         if s is None:
             continue
         options[f"effects.{name}"] = s.kind
+        if s.kind == "legendre":
+            options[f"effects.{name}.beyond"] = s.beyond
         fields = {"legendre": ("lo", "hi", "coef"), "fourier": ("periods", "harmonics", "coef"), "table": ("q0", "dq", "values")}[s.kind]
         for f in fields:
             v = getattr(s, f)
@@ -563,7 +601,11 @@ def _decode_axis(p: Any) -> AxisModel:
             continue
         g = lambda f, vector=False: p.get(f"effects.{name}.{f}", _QUANTITY[f"series.{f}"], vector=vector)  # noqa: E731
         if kind == "legendre":
-            kw[name] = PositionSeries.legendre(g("lo"), g("hi"), g("coef", True))
+            # files written before the option existed held the series beyond the travel
+            beyond = options.get(f"effects.{name}.beyond", "hold")
+            if beyond not in ("hold", "linear"):
+                raise ModelFormatError(f"{p.source}: \"options\".\"effects.{name}.beyond\" must be \"hold\" or \"linear\", got {show(beyond)}")
+            kw[name] = PositionSeries.legendre(g("lo"), g("hi"), g("coef", True), beyond)
         elif kind == "fourier":
             kw[name] = PositionSeries.fourier(g("periods", True), int(round(g("harmonics"))), g("coef", True))
         elif kind == "table":

@@ -21,9 +21,11 @@ use nalgebra::Matrix2;
 /// A function of position `g(q)` (N), as a series or a table.
 #[derive(Debug, Clone, PartialEq)]
 pub enum PositionSeries {
-    /// `sum_d coef[d] P_d(x)`, `x = 2 (q - lo) / (hi - lo) - 1` clipped to `[-1, 1]` (Legendre
-    /// polynomials over the travel `[lo, hi]`, constant beyond it).
-    Legendre { lo: f64, hi: f64, coef: Vec<f64> },
+    /// `sum_d coef[d] P_d(x)`, `x = 2 (q - lo) / (hi - lo) - 1` (Legendre polynomials over the
+    /// travel `[lo, hi]`); beyond the travel constant at its edge value, or with `linear_beyond`
+    /// its degree-1 term (the slope of its best straight line over the travel) goes on while the
+    /// curved terms hold their edge values: a spring or a weight goes on growing, a bump does not.
+    Legendre { lo: f64, hi: f64, coef: Vec<f64>, linear_beyond: bool },
     /// `sum_p sum_h (coef_sin sin(2 pi h q / p) + coef_cos cos(2 pi h q / p))`, `h = 1..=harmonics`,
     /// coefficients ordered period by period, harmonic by harmonic, sine before cosine.
     Fourier { periods: Vec<f64>, harmonics: usize, coef: Vec<f64> },
@@ -35,7 +37,7 @@ impl PositionSeries {
     /// Validate the parameters.
     pub fn check(&self) -> Result<()> {
         match self {
-            PositionSeries::Legendre { lo, hi, coef } => {
+            PositionSeries::Legendre { lo, hi, coef, .. } => {
                 check::finite("lo", *lo)?;
                 check::finite("hi", *hi)?;
                 if !(hi > lo) || !((hi - lo).is_normal()) {
@@ -80,7 +82,7 @@ impl PositionSeries {
     #[inline]
     pub fn eval_with_slope(&self, q: f64) -> (f64, f64) {
         match self {
-            PositionSeries::Legendre { lo, hi, coef } => {
+            PositionSeries::Legendre { lo, hi, coef, linear_beyond } => {
                 let scale = 2.0 / (hi - lo);
                 let raw = scale * (q - lo) - 1.0;
                 let x = raw.clamp(-1.0, 1.0);
@@ -98,7 +100,13 @@ impl PositionSeries {
                     (p_prev, p) = (p, next);
                     (dp_prev, dp) = (dp, dnext);
                 }
-                (sum, if raw.abs() <= 1.0 { slope * scale } else { 0.0 })
+                if raw.abs() <= 1.0 {
+                    (sum, slope * scale)
+                } else if *linear_beyond && coef.len() > 1 {
+                    (sum + coef[1] * (raw - x), coef[1] * scale)
+                } else {
+                    (sum, 0.0)
+                }
             }
             PositionSeries::Fourier { periods, harmonics, coef } => {
                 let (mut sum, mut slope) = (0.0, 0.0);
@@ -517,7 +525,7 @@ mod tests {
 
     #[test]
     fn legendre_matches_the_closed_forms() {
-        let s = PositionSeries::Legendre { lo: -1.0, hi: 1.0, coef: vec![0.5, 2.0, -1.0, 0.25] };
+        let s = PositionSeries::Legendre { lo: -1.0, hi: 1.0, coef: vec![0.5, 2.0, -1.0, 0.25], linear_beyond: false };
         for &x in &[-1.0, -0.3, 0.0, 0.7, 1.0] {
             let p2 = 0.5 * (3.0 * x * x - 1.0);
             let p3 = 0.5 * (5.0 * x * x * x - 3.0 * x);
@@ -526,6 +534,25 @@ mod tests {
         }
         // Constant beyond the travel.
         assert_eq!(s.eval(3.0), s.eval(1.0));
+    }
+
+    #[test]
+    fn legendre_continues_its_straight_line_beyond_the_travel_when_asked() {
+        // a spring fitted over the travel [0, 0.1] is a line in q, and stays one beyond it
+        let line = PositionSeries::Legendre { lo: 0.0, hi: 0.1, coef: vec![1.0, 2.0], linear_beyond: true };
+        let at = |q: f64| 1.0 + 2.0 * (20.0 * q - 1.0);
+        for &q in &[-0.3, -0.01, 0.05, 0.13, 0.4] {
+            assert!((line.eval(q) - at(q)).abs() < 1e-12, "q = {q}");
+        }
+        // a curved series: continuous at the edges, and beyond them the slope of its degree-1
+        // term (2 per unit of x), not the steeper tangent of its curved terms
+        let s = PositionSeries::Legendre { lo: -1.0, hi: 1.0, coef: vec![0.5, 2.0, -1.0, 0.25], linear_beyond: true };
+        let (v1, d1) = s.eval_with_slope(1.0);
+        assert!((s.eval(1.0 + 1e-9) - v1).abs() < 1e-8 && (d1 - 2.0).abs() > 0.5);
+        assert!((s.eval(2.5) - (v1 + 1.5 * 2.0)).abs() < 1e-12);
+        assert_eq!(s.eval_with_slope(2.5).1, 2.0);
+        let v0 = s.eval(-1.0);
+        assert!((s.eval(-3.0) - (v0 - 2.0 * 2.0)).abs() < 1e-12);
     }
 
     #[test]
@@ -542,12 +569,13 @@ mod tests {
     #[test]
     fn slopes_match_finite_differences() {
         let series = [
-            PositionSeries::Legendre { lo: -0.2, hi: 0.3, coef: vec![0.5, 2.0, -1.0, 0.25, 0.7] },
+            PositionSeries::Legendre { lo: -0.2, hi: 0.3, coef: vec![0.5, 2.0, -1.0, 0.25, 0.7], linear_beyond: false },
+            PositionSeries::Legendre { lo: -0.2, hi: 0.3, coef: vec![0.5, 2.0, -1.0, 0.25, 0.7], linear_beyond: true },
             PositionSeries::Fourier { periods: vec![5e-3, 1.3e-2], harmonics: 2, coef: vec![1.0, 0.5, -0.2, 0.3, 0.1, -0.4, 0.2, 0.9] },
             PositionSeries::Table { q0: -0.1, dq: 0.05, values: vec![0.0, 2.0, 1.0, 1.5] },
         ];
         for s in &series {
-            for &q in &[-0.13, -0.02, 0.0123, 0.071, 0.24] {
+            for &q in &[-0.47, -0.13, -0.02, 0.0123, 0.071, 0.24, 0.55] {
                 let h = 1e-7;
                 let fd = (s.eval(q + h) - s.eval(q - h)) / (2.0 * h);
                 let (_, slope) = s.eval_with_slope(q);

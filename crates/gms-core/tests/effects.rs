@@ -29,7 +29,7 @@ fn empty_effects_change_nothing() {
 fn position_force_is_a_spring_in_feedback() {
     // g(q) = k q on [-1, 1] (Legendre P1), mass m, no friction: free oscillation at sqrt(k/m).
     let (m, k, dt) = (2.0, 800.0, 1e-4);
-    let effects = Effects { position_force: Some(PositionSeries::Legendre { lo: -1.0, hi: 1.0, coef: vec![0.0, k] }), ..Default::default() };
+    let effects = Effects { position_force: Some(PositionSeries::Legendre { lo: -1.0, hi: 1.0, coef: vec![0.0, k], linear_beyond: false }), ..Default::default() };
     let u = vec![0.0; 40_000];
     let mut input = ClosedLoopInput::open(&u, dt);
     input.initial_position = 1e-3;
@@ -101,7 +101,7 @@ fn drifting_friction_follows_its_time_law() {
 fn position_dependent_friction_sets_the_breakaway_level_where_the_axis_stands() {
     // Coulomb 2 N plus g(q) = 3 N at q = +1 (P1 on [-1, 1]): at q = 1 the contact holds 4.5 N,
     // at q = -1 it gives way to the same push.
-    let effects = Effects { position_friction: Some(PositionSeries::Legendre { lo: -1.0, hi: 1.0, coef: vec![0.0, 3.0] }), ..Default::default() };
+    let effects = Effects { position_friction: Some(PositionSeries::Legendre { lo: -1.0, hi: 1.0, coef: vec![0.0, 3.0], linear_beyond: false }), ..Default::default() };
     let u = vec![4.5; 1000];
     for (q0, moves) in [(1.0, false), (-1.0, true)] {
         let mut input = ClosedLoopInput::open(&u, 1e-3);

@@ -155,7 +155,8 @@ fn controller() -> BoxedStrategy<Option<Result<ControllerModel>>> {
 
 fn series() -> BoxedStrategy<PositionSeries> {
     prop_oneof![
-        (real(), real(), proptest::collection::vec(real(), 1..5)).prop_map(|(lo, hi, coef)| PositionSeries::Legendre { lo, hi, coef }),
+        (real(), real(), proptest::collection::vec(real(), 1..5), proptest::bool::ANY)
+            .prop_map(|(lo, hi, coef, linear_beyond)| PositionSeries::Legendre { lo, hi, coef, linear_beyond }),
         (proptest::collection::vec(pos(), 1..3), 0usize..4)
             .prop_flat_map(|(p, h)| {
                 let n = 2 * p.len() * h.max(1);

@@ -147,6 +147,8 @@ struct SeriesArgs {
     #[pyo3(default)]
     coef: Vec<f64>,
     #[pyo3(default)]
+    linear_beyond: bool,
+    #[pyo3(default)]
     periods: Vec<f64>,
     #[pyo3(default)]
     harmonics: usize,
@@ -161,7 +163,7 @@ struct SeriesArgs {
 fn series(name: &'static str, a: Option<SeriesArgs>) -> PyResult<Option<core::PositionSeries>> {
     let Some(a) = a else { return Ok(None) };
     let s = match a.kind.as_str() {
-        "legendre" => core::PositionSeries::Legendre { lo: a.lo, hi: a.hi, coef: a.coef },
+        "legendre" => core::PositionSeries::Legendre { lo: a.lo, hi: a.hi, coef: a.coef, linear_beyond: a.linear_beyond },
         "fourier" => core::PositionSeries::Fourier { periods: a.periods, harmonics: a.harmonics, coef: a.coef },
         "table" => core::PositionSeries::Table { q0: a.q0, dq: a.dq, values: a.values },
         other => return Err(core::CoreError::InvalidParameter { name, reason: format!("unknown series kind '{other}' (legendre, fourier, table)") }).py(),

@@ -42,7 +42,7 @@ def _series(hyper: tuple, coef: np.ndarray, q_range: tuple[float, float]) -> Pos
     fitted coefficients."""
     if hyper[0] == 0:
         lo, hi = q_range
-        return PositionSeries.legendre(lo, hi, np.concatenate(([0.0], coef)))
+        return PositionSeries.legendre(lo, hi, np.concatenate(([0.0], coef)), beyond="linear")
     return PositionSeries.fourier(tuple(hyper[2:]), int(hyper[1]), coef)
 
 

@@ -35,11 +35,11 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from numpy.polynomial import legendre
 from numpy.typing import NDArray
 from scipy import ndimage, signal
 
 from .. import curves
+from ..axis import legendre_beyond
 from .. import models as _models
 from .idim import Array, LinearModel, Signals, Term, advance, decimation_settling_rows
 
@@ -47,14 +47,14 @@ from .idim import Array, LinearModel, Signals, Term, advance, decimation_settlin
 # column builders (full rate)
 
 
-def _qnorm(s: Signals) -> Array:
-    lo, hi = s.q_range
-    return np.clip(2.0 * (s.q - lo) / max(hi - lo, 1e-12) - 1.0, -1.0, 1.0)
-
-
 def _legendre(s: Signals, degree: int) -> Array:
-    x = _qnorm(s)
-    return np.column_stack([legendre.legval(x, np.eye(degree + 1)[d]) for d in range(1, degree + 1)])
+    """Legendre columns over the estimation travel; beyond it the degree-1 column goes on and the
+    curved ones hold their edge values (as the axis model's series do): a held-out run that
+    leaves the travel meets a spring or a weight that goes on growing, not one frozen at the
+    edge, and no bump of the fit extrapolated along its steep tangent."""
+    lo, hi = s.q_range
+    x = 2.0 * (s.q - lo) / max(hi - lo, 1e-12) - 1.0
+    return np.column_stack([legendre_beyond(x, np.eye(degree + 1)[d], linear=True) for d in range(1, degree + 1)])
 
 
 def _fourier(s: Signals, periods: tuple[float, ...], harmonics: int) -> Array:
