@@ -44,7 +44,7 @@ def test_position_force_holds_the_axis_where_it_balances_the_push() -> None:
 @pytest.mark.parametrize(("beyond", "held"), [("linear", True), ("hold", False)])
 def test_a_spring_fitted_over_a_short_travel_pushes_back_beyond_it_only_when_continued(beyond, held) -> None:
     # The same 200 N/m spring known over +-10 mm only; the 4 N push balances it at 20 mm.
-    # Continued along its tangent it still holds the axis there; held at its edge value (2 N)
+    # Continued with its slope it still holds the axis there; held at its edge value (2 N)
     # it cannot, and the axis runs on.
     spring = g.PositionSeries.legendre(-0.01, 0.01, [0.0, 200.0 * 0.01], beyond=beyond)
     m = g.AxisModel(g.Plant.from_mass(1.0), g.StaticFriction(g.Stribeck(0.5, 0.5, 1e-3), sigma=30.0), g.Effects(position_force=spring))

@@ -60,32 +60,31 @@ def _floats(name: str, values: Any) -> tuple[float, ...]:
     return tuple(float(v) for v in arr)
 
 
-def legendre_beyond(x: ArrayLike, coef: ArrayLike, linear: bool) -> NDArray[np.float64]:
-    """A Legendre series over the travel, and what it does beyond it.
+def legendre_columns(x: ArrayLike, degree: int, linear: bool) -> NDArray[np.float64]:
+    """The Legendre polynomials ``P_0 .. P_degree`` over the travel, and what they do beyond it.
 
     Parameters
     ----------
     x : array_like
         Positions scaled to the travel (``-1`` and ``1`` at its ends; beyond them outside it).
-    coef : array_like
-        Coefficients of ``P_0, P_1, ...``.
+    degree : int
+        Highest degree.
     linear : bool
-        Beyond the travel, let the degree-1 term go on (``coef[1]`` per unit of ``x``, the
-        slope of the series' best straight line over the travel) while the curved terms hold
-        their edge values; otherwise the whole series holds its edge value.
+        Beyond the travel, let ``P_1`` go on (its slope is that of a series' best straight line
+        over the travel) while the curved polynomials hold their edge values; otherwise every
+        polynomial holds its edge value.
 
     Returns
     -------
     ndarray
-        ``sum_d coef[d] P_d(x)`` within the travel, continued as chosen beyond it.
+        Shape ``(len(x), degree + 1)``; a series is ``legendre_columns(x, d, linear) @ coef``.
     """
     x = np.asarray(x, dtype=float)
-    c = np.asarray(coef, dtype=float)
     xc = np.clip(x, -1.0, 1.0)
-    out = np.polynomial.legendre.legval(xc, c)
-    if linear and c.size > 1:
-        out = out + c[1] * (x - xc)
-    return out
+    cols = np.polynomial.legendre.legvander(xc, degree)
+    if linear and degree >= 1:
+        cols[:, 1] += x - xc
+    return cols
 
 
 @dataclass(frozen=True)
@@ -158,7 +157,8 @@ class PositionSeries:
         """``g(q)`` on positions ``q`` (numpy; the core evaluates the same series in simulations)."""
         q = as_array("q", q)
         if self.kind == "legendre":
-            return legendre_beyond(2.0 * (q - self.lo) / (self.hi - self.lo) - 1.0, self.coef, self.beyond == "linear")
+            x = 2.0 * (q - self.lo) / (self.hi - self.lo) - 1.0
+            return legendre_columns(x, len(self.coef) - 1, self.beyond == "linear") @ np.asarray(self.coef)
         if self.kind == "fourier":
             out = np.zeros_like(q)
             c = iter(self.coef)

@@ -39,8 +39,8 @@ from numpy.typing import NDArray
 from scipy import ndimage, signal
 
 from .. import curves
-from ..axis import legendre_beyond
 from .. import models as _models
+from ..axis import legendre_columns
 from .idim import Array, LinearModel, Signals, Term, advance, decimation_settling_rows
 
 # ------------------------------------------------------------------------------------------
@@ -54,7 +54,7 @@ def _legendre(s: Signals, degree: int) -> Array:
     edge, and no bump of the fit extrapolated along its steep tangent."""
     lo, hi = s.q_range
     x = 2.0 * (s.q - lo) / max(hi - lo, 1e-12) - 1.0
-    return np.column_stack([legendre_beyond(x, np.eye(degree + 1)[d], linear=True) for d in range(1, degree + 1)])
+    return legendre_columns(x, degree, linear=True)[:, 1:]
 
 
 def _fourier(s: Signals, periods: tuple[float, ...], harmonics: int) -> Array:
