@@ -245,3 +245,74 @@ def test_compliance_grid_keeps_a_sharp_resonance_within_half_its_bandwidth(fs):
         fns = np.sort(grid[zeta])
         assert fns[0] <= 2.0 + 1e-9 and fns[-1] >= resonance_limit(s) * (1 - 1e-9)
         assert np.max(fns[1:] / fns[:-1]) <= 1.0 + max(zeta, 0.03) + 1e-9
+
+
+def _clean_rig_with(extra) -> tuple[AxisData, Rig]:
+    """A clean rig's run with a force ``extra(t, qd, v_scale)`` added to its measured force."""
+    rig = Rig(seed=4, fs=1000.0, duration=16.0)
+    d = simulate_rig(rig)
+    qd = np.gradient(d.position, d.t)
+    v = float(np.percentile(np.abs(qd), 99))
+    return AxisData(d.t, d.position, d.force + extra(d.t, qd, v), source="planted"), rig
+
+
+def _chosen(eff, data: AxisData):
+    """The variant of ``eff`` the loop's first round chooses on ``data`` (held-out blocks inside)."""
+    from gmsfric.loop.select import _best_variant, _cv, _residual_rows, stage_baseline, stage_prepare
+
+    cfg = LoopConfig(progress=False)
+    split, chunk = stage_prepare(data, None, cfg)
+    st = stage_baseline(split, chunk, cfg)
+    _, r_est = _residual_rows(st, cfg)
+    m, _ = _best_variant(eff, st.model, st, cfg, r_est)
+    return m, (None if m is None else _cv(m, st.split, cfg)), st
+
+
+def test_a_stribeck_curve_between_the_grid_widths_is_refined_to_its_own():
+    """The grid's widths are a factor ~1.4 apart; a large hump fits far worse between them than at
+    its own width, so the best grid curve is refined (width and exponent) before it meets the
+    drag probes, which have no width to miss."""
+    from dataclasses import replace
+
+    probe, _ = _clean_rig_with(lambda t, qd, v: 0.0 * t)
+    s = Signals(probe)
+    widths = sorted({tm.hyper[0] for m in CATALOGUE["stribeck"].variants(LinearModel([]), s, np.zeros(s.n_rows))
+                     for tm in m.terms if tm.hyper[0] <= 0.5 * s.v_scale})
+    vs = float(np.sqrt(widths[-4] * widths[-3]))  # half-way between two grid widths (log scale)
+    fc = Rig().fc
+    data, _ = _clean_rig_with(lambda t, qd, v: 1.2 * fc * np.sign(qd) * np.exp(-(np.abs(qd) / vs) ** 1.5))
+    m, cv, _ = _chosen(CATALOGUE["stribeck"], data)
+    assert m is not None
+    got_vs, got_delta = next(tm.hyper for tm in m.terms if tm.name == "stribeck")
+    assert got_vs == pytest.approx(vs, rel=0.1) and got_delta == pytest.approx(1.5, abs=0.2)
+    assert m.params()["Fs_minus_Fc"]["value"] == pytest.approx(1.2 * fc, rel=0.1)
+    # the grid alone lands a whole grid step off, with a clearly larger cross-validated error
+    m_grid, cv_grid, _ = _chosen(replace(CATALOGUE["stribeck"], refine=None), data)
+    assert m_grid is not None and cv < 0.8 * cv_grid
+
+
+def test_a_drift_is_evaluated_on_the_estimation_runs_time_scale():
+    """A warm-up's time constant and a trend's slope are the axis', in seconds: on a held-out run
+    twice as long the drift columns follow the estimation run's time scale, as the axis model
+    the loop writes does (it saves them in seconds), not one stretched to the held-out run."""
+    def run(duration: float) -> Signals:
+        t = np.arange(0.0, duration, 1e-3)
+        q = 0.05 * np.sin(2 * np.pi * 0.5 * t)
+        return Signals(AxisData(t, q, 10.0 * np.sign(np.cos(2 * np.pi * 0.5 * t)), source=f"{duration} s"))
+
+    est, val = run(10.0), run(20.0)
+    for m in CATALOGUE["friction_drift"].variants(LinearModel([]), est, np.zeros(est.n_rows)):
+        term = next(tm for tm in m.terms if tm.name == "friction_drift")
+        frac = term.hyper[0]
+        h = (val.t / est.duration - 0.5) if frac == 0 else np.exp(-val.t / (frac * est.duration))
+        np.testing.assert_allclose(term.full(val)[:, 0], np.sign(val.qd) * h, rtol=1e-12, atol=1e-15)
+
+
+def test_a_warm_up_between_the_grid_time_constants_is_refined_to_its_own():
+    tau = float(np.sqrt(0.15 * 0.4))  # of the run's duration, half-way between two grid points
+    fc = Rig().fc
+    data, rig = _clean_rig_with(lambda t, qd, v: 0.5 * fc * np.sign(qd) * np.exp(-t / (tau * t[-1])))
+    m, _, st = _chosen(CATALOGUE["friction_drift"], data)
+    assert m is not None
+    got = next(tm.hyper[0] for tm in m.terms if tm.name == "friction_drift")
+    assert got * st.split.est.duration == pytest.approx(tau * data.t[-1], rel=0.15)

@@ -135,8 +135,12 @@ def _heating_trend(s: Signals, tau: float) -> Array:
     return np.column_stack([np.sign(s.qd) * h, s.qd * h])
 
 
-def _drift(s: Signals, tau_frac: float) -> Array:
-    T = max(s.duration, 1e-9)
+def _drift(s: Signals, tau_frac: float, duration: float) -> Array:
+    """Drift columns on run ``s`` over the time scale of the estimation run (``duration``, s): a
+    warm-up's time constant and a trend's slope are properties of the axis in seconds, so a
+    held-out run of another length meets the drift the axis model carries (which is saved in
+    seconds), not one stretched to its own length."""
+    T = max(duration, 1e-9)
     h = (s.t / T - 0.5) if tau_frac <= 0 else np.exp(-s.t / (tau_frac * T))
     return np.column_stack([np.sign(s.qd) * h, s.qd * h])
 
@@ -332,7 +336,7 @@ def settled_rows(s: Signals) -> NDArray[np.bool_]:
 
 def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out: list[LinearModel] = []
-    lo, hi = velocity_resolution(s), 0.5 * s.v_scale
+    lo, hi = velocity_resolution(s), STRIBECK_MAX_WIDTH * s.v_scale
     if not hi > lo:
         return out
     grid = [(float(vs), delta) for delta in (1.0, 2.0) for vs in np.geomspace(lo, hi, max(2, min(14, int(np.ceil(6 * np.log10(hi / lo))) + 1)))]
@@ -355,6 +359,22 @@ def _stribeck_dip(p: dict[str, dict[str, float]]) -> bool:
 
 #: Widths (times the run's top speed) of the probe curves that are a drag across the motion.
 STRIBECK_PROBE_WIDTHS = (2.0, 4.0)
+
+#: Widest Stribeck curve fitted, times the run's top speed (the grid's upper end).
+STRIBECK_MAX_WIDTH = 0.5
+
+#: Range of the Stribeck exponent ``delta`` the curve is refined over (the grid tries 1 and 2;
+#: measured curves lie between about 0.5 and 2, a Lorentzian hump near 1.5).
+STRIBECK_DELTAS = (0.5, 2.5)
+
+
+def stribeck_bounds(s: Signals) -> list[tuple[float, float]]:
+    """Bounds of ``(vs, delta)`` when the best grid curve is refined: the grid's range of widths.
+    Between the grid's widths (a factor 1.4 apart) a large hump fits far worse than at its own
+    width, and worse than the smooth drag probes, which have no width to miss: so it is refined
+    before it meets them.  The refinement only fills in between the grid's points; whether a
+    curve wider than the motion (a drag) fits better is the probes' question, as before."""
+    return [(velocity_resolution(s), STRIBECK_MAX_WIDTH * s.v_scale), STRIBECK_DELTAS]
 
 
 #: Largest pre-sliding break displacement, as a fraction of the travel: pre-sliding is the elastic
@@ -517,10 +537,17 @@ def _delay(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     return out
 
 
+#: Warm-up time constants tried, as fractions of the estimation run's duration (0: a linear
+#: trend); the best warm-up is then refined between them (:data:`DRIFT_TAU_RANGE`).
+DRIFT_TAUS = (0.0, 0.05, 0.15, 0.4, 1.0)
+DRIFT_TAU_RANGE = (min(DRIFT_TAUS[1:]), max(DRIFT_TAUS))
+
+
 def _drift_variants(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out = []
-    for tau in (0.0, 0.05, 0.15, 0.4, 1.0):
-        t = Term("friction_drift", ("dFc_drift", "dFv_drift"), lambda s, h: _drift(s, h[0]), (tau,), ("drift_tau_over_T",))
+    duration = s.duration  # the estimation run's: the variants are built on it
+    for tau in DRIFT_TAUS:
+        t = Term("friction_drift", ("dFc_drift", "dFv_drift"), lambda s, h: _drift(s, h[0], duration), (tau,), ("drift_tau_over_T",))
         out.append(_add(model, t, "friction_drift"))
     return out
 
@@ -711,13 +738,15 @@ CATALOGUE: dict[str, Effect] = {
     for e in (
         Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric),
         Effect("stribeck", "friction changes from its level at rest to its sliding level at low speed (Stribeck curve)", "velocity", _stribeck, _stribeck_ok,
-               probe=lambda p, s: p["vs"]["value"] > s.v_scale, clear_of_reversals=_stribeck_dip, contested=_contested_hump),
+               probe=lambda p, s: p["vs"]["value"] > s.v_scale, clear_of_reversals=_stribeck_dip, contested=_contested_hump,
+               refine=stribeck_bounds),
         Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok,
                null=reversal_switch, creeping=True),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True, refit_clear_of_reversals=True),
-        Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants, acts_over_time=True),
+        Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants, acts_over_time=True,
+               refine=lambda s: [DRIFT_TAU_RANGE]),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok,
                probe=lambda p, s: not HEATING_MIN_TAU_S <= p["heating_tau_s"]["value"] < s.duration, null=heating_trend),
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,

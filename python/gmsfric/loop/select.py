@@ -879,6 +879,10 @@ def clear_split(split: Split) -> Split | None:
     return replace(split, est_fit=rows, est_creep=rows, label="moving rows clear of reversals and stops")
 
 
+#: First step of the refinement of a nonlinear parameter, in its logarithm (about 10 %).
+REFINE_STEP = 0.1
+
+
 def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], split: Split, cfg: LoopConfig) -> tuple[tuple[float, LinearModel], str | None]:
     """The effect's nonlinear parameters refined from the best grid variant (Nelder-Mead on their
     logarithms, within the effect's bounds, on the same cross-validated error); the grid variant
@@ -887,6 +891,8 @@ def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], split: Split, cf
     physical (the data prefer what the effect is not, as when a probe wins on the grid)."""
     cv0, m0 = best
     term = next(t for t in m0.terms if t.name == eff.name)
+    if not all(h > 0 for h in term.hyper):
+        return best, None  # a zero marks a variant of another form (a linear drift), not a point of the range
     bounds = np.log(np.asarray(eff.refine(split.est), dtype=float))  # type: ignore[misc]
 
     def variant(z: Array) -> LinearModel:
@@ -899,7 +905,13 @@ def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], split: Split, cf
             return np.inf
 
     z0 = np.clip(np.log(np.asarray(term.hyper, dtype=float)), bounds[:, 0], bounds[:, 1])
-    res = optimize.minimize(objective, z0, method="Nelder-Mead", options={"maxfev": 60, "xatol": 1e-3, "fatol": 1e-6 * cv0})
+    # the first simplex steps every parameter by REFINE_STEP in its logarithm, into the range:
+    # scipy's default (5 % of each coordinate) depends on the unit and leaves a parameter whose
+    # logarithm is zero (a Stribeck exponent of 1) where it started
+    step = np.where(z0 + REFINE_STEP <= bounds[:, 1], REFINE_STEP, -REFINE_STEP)
+    simplex = np.vstack([z0, z0 + np.diag(step)])
+    res = optimize.minimize(objective, z0, method="Nelder-Mead",
+                            options={"maxfev": 60, "xatol": 1e-3, "fatol": 1e-6 * cv0, "initial_simplex": simplex})
     if not (np.isfinite(res.fun) and res.fun < cv0):
         return best, None
     m = variant(res.x)
