@@ -15,6 +15,7 @@ import argparse
 import json
 import math
 import os
+import shlex
 import subprocess
 import sys
 import time
@@ -34,7 +35,7 @@ N_SINGLE["friction_drift"] = 5
 N_SINGLE["heating"] = 5
 N_CLEAN = 27
 N_PAIR = 14
-CLI = str(Path(sys.executable).parent / "gmsfric")
+CLI = [str(Path(sys.executable).parent / "gmsfric")]  # the command that runs gmsfric (--gmsfric)
 
 
 # ----------------------------------------------------------------------------- case design
@@ -254,7 +255,7 @@ def build_case(case, outdir: Path):
 
 def run_cli(truth, cdir: Path):
     u = truth["units"]
-    cmd = [CLI, "loop", str(cdir / "est.csv"), "--validate", str(cdir / "val.csv"),
+    cmd = CLI + ["loop", str(cdir / "est.csv"), "--validate", str(cdir / "val.csv"),
            "--time", "t", "--position", "q", "--force", "f", "--time-unit", u[0],
            "--position-unit", u[1], "--force-unit", u[2], "--json", str(cdir / "out.json"),
            "--quiet"]
@@ -399,7 +400,10 @@ def main():
     ap.add_argument("--only", nargs="*", help="case ids")
     ap.add_argument("--fresh", action="store_true")
     ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--gmsfric", default=None, help="command running gmsfric (default: the one next to this python)")
     a = ap.parse_args()
+    if a.gmsfric:
+        CLI[:] = shlex.split(a.gmsfric)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     cases = design(a.seed)

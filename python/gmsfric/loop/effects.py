@@ -334,12 +334,22 @@ def settled_rows(s: Signals) -> NDArray[np.bool_]:
     return ~ndimage.maximum_filter1d(event.astype(np.uint8), 2 * half + 1).astype(bool)
 
 
+#: Widths (times the run's top speed) of the probe curves that are a drag across the motion.
+STRIBECK_PROBE_WIDTHS = (2.0, 4.0)
+
+#: Widest Stribeck curve fitted, times the run's top speed (the grid's upper end).
+STRIBECK_MAX_WIDTH = 0.5
+
+#: Stribeck exponents ``delta`` of the grid; the best curve is refined between them.
+STRIBECK_DELTAS = (1.0, 2.0)
+
+
 def _stribeck(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out: list[LinearModel] = []
     lo, hi = velocity_resolution(s), STRIBECK_MAX_WIDTH * s.v_scale
     if not hi > lo:
         return out
-    grid = [(float(vs), delta) for delta in (1.0, 2.0) for vs in np.geomspace(lo, hi, max(2, min(14, int(np.ceil(6 * np.log10(hi / lo))) + 1)))]
+    grid = [(float(vs), delta) for delta in STRIBECK_DELTAS for vs in np.geomspace(lo, hi, max(2, min(14, int(np.ceil(6 * np.log10(hi / lo))) + 1)))]
     # probes: curves whose transition lies beyond the fastest motion; across the run's speeds
     # (Fs - Fc) exp(-(v/vs)^2) is a level and a term in v|v|, i.e. a drag
     grid += [(f * s.v_scale, 2.0) for f in STRIBECK_PROBE_WIDTHS]
@@ -357,24 +367,13 @@ def _stribeck_dip(p: dict[str, dict[str, float]]) -> bool:
     return "Fs_minus_Fc" in p and p["Fs_minus_Fc"]["value"] < 0
 
 
-#: Widths (times the run's top speed) of the probe curves that are a drag across the motion.
-STRIBECK_PROBE_WIDTHS = (2.0, 4.0)
-
-#: Widest Stribeck curve fitted, times the run's top speed (the grid's upper end).
-STRIBECK_MAX_WIDTH = 0.5
-
-#: Range of the Stribeck exponent ``delta`` the curve is refined over (the grid tries 1 and 2;
-#: measured curves lie between about 0.5 and 2, a Lorentzian hump near 1.5).
-STRIBECK_DELTAS = (0.5, 2.5)
-
-
 def stribeck_bounds(s: Signals) -> list[tuple[float, float]]:
     """Bounds of ``(vs, delta)`` when the best grid curve is refined: the grid's range of widths.
     Between the grid's widths (a factor 1.4 apart) a large hump fits far worse than at its own
     width, and worse than the smooth drag probes, which have no width to miss: so it is refined
     before it meets them.  The refinement only fills in between the grid's points; whether a
     curve wider than the motion (a drag) fits better is the probes' question, as before."""
-    return [(velocity_resolution(s), STRIBECK_MAX_WIDTH * s.v_scale), STRIBECK_DELTAS]
+    return [(velocity_resolution(s), STRIBECK_MAX_WIDTH * s.v_scale), (min(STRIBECK_DELTAS), max(STRIBECK_DELTAS))]
 
 
 #: Largest pre-sliding break displacement, as a fraction of the travel: pre-sliding is the elastic
