@@ -17,9 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shlex
-import subprocess
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -30,7 +28,7 @@ if __package__ in (None, ""):  # run as a script: make the package importable
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     __package__ = "loop_campaign"
 
-from .run import _last_line, gmsfric_command  # noqa: E402
+from .run import call_loop, gmsfric_command  # noqa: E402
 from .score import format_report, summarize  # noqa: E402
 
 
@@ -45,26 +43,7 @@ def rerun_case(old: dict[str, Any], src: Path, out: Path, gmsfric: list[str], ti
     tail = old_cmd[old_cmd.index("loop"):]
     out_json = d / "loop.json"
     tail[tail.index("--json") + 1] = str(out_json)
-    cmd = gmsfric + tail
-    (d / "command.txt").write_text(shlex.join(cmd) + "\n")
-    out_json.unlink(missing_ok=True)
-    t1 = time.perf_counter()
-    try:
-        p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=dict(os.environ, MPLBACKEND="Agg"))
-        code, stderr = p.returncode, p.stderr
-    except subprocess.TimeoutExpired:
-        code, stderr = -1, f"timeout after {timeout:.0f} s"
-    res["loop_s"] = round(time.perf_counter() - t1, 2)
-    (d / "stderr.txt").write_text(stderr)
-    if code != 0 or not out_json.exists():
-        res.update(status="fail", error=_last_line(stderr) + ("" if code else " (no JSON written)"))
-    else:
-        o = json.loads(out_json.read_text())
-        res.update(status="ok", error="", accepted=list(o["final"]["effects"]),
-                   alignment=bool(o.get("alignment", {}).get("applied", False)),
-                   unconfirmed=sorted({x["parameter"] for x in o.get("diagnostics", []) if x.get("code") == "unconfirmed"}),
-                   loop_errors={"baseline": [o["baseline"]["estimation_error_pct"], o["baseline"]["validation_error_pct"]],
-                                "final": [o["final"]["estimation_error_pct"], o["final"]["validation_error_pct"]]})
+    call_loop(gmsfric + tail, d, out_json, res, timeout)
     (d / "result.json").write_text(json.dumps(res, indent=1))
     return res
 

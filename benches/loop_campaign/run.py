@@ -100,8 +100,16 @@ def run_case(case: dict[str, Any], out: Path, gmsfric: list[str], timeout: float
         res.update(status="truth_only", error="")
         return res
     out_json = d / "loop.json"
-    out_json.unlink(missing_ok=True)
     cmd = loop_command(case, fe, fv, out_json, gmsfric)
+    call_loop(cmd, d, out_json, res, timeout)
+    res_path.write_text(json.dumps(res, indent=1))
+    return res
+
+
+def call_loop(cmd: list[str], d: Path, out_json: Path, res: dict[str, Any], timeout: float) -> None:
+    """Run the loop command ``cmd`` (writing ``out_json``) for the case folder ``d`` and put its
+    outcome into ``res``: status, accepted effects, alignment, unconfirmed delays, errors."""
+    out_json.unlink(missing_ok=True)
     (d / "command.txt").write_text(shlex.join(cmd) + "\n")  # quoted: units such as "N m" hold a space
     t1 = time.perf_counter()
     try:
@@ -113,15 +121,13 @@ def run_case(case: dict[str, Any], out: Path, gmsfric: list[str], timeout: float
     (d / "stderr.txt").write_text(stderr)
     if code != 0 or not out_json.exists():
         res.update(status="fail", error=_last_line(stderr) + ("" if code else " (no JSON written)"))
-    else:
-        o = json.loads(out_json.read_text())
-        res.update(status="ok", error="", accepted=list(o["final"]["effects"]),
-                   alignment=bool(o.get("alignment", {}).get("applied", False)),
-                   unconfirmed=sorted({d["parameter"] for d in o.get("diagnostics", []) if d.get("code") == "unconfirmed"}),
-                   loop_errors={"baseline": [o["baseline"]["estimation_error_pct"], o["baseline"]["validation_error_pct"]],
-                                "final": [o["final"]["estimation_error_pct"], o["final"]["validation_error_pct"]]})
-    res_path.write_text(json.dumps(res, indent=1))
-    return res
+        return
+    o = json.loads(out_json.read_text())
+    res.update(status="ok", error="", accepted=list(o["final"]["effects"]),
+               alignment=bool(o.get("alignment", {}).get("applied", False)),
+               unconfirmed=sorted({x["parameter"] for x in o.get("diagnostics", []) if x.get("code") == "unconfirmed"}),
+               loop_errors={"baseline": [o["baseline"]["estimation_error_pct"], o["baseline"]["validation_error_pct"]],
+                            "final": [o["final"]["estimation_error_pct"], o["final"]["validation_error_pct"]]})
 
 
 def run_cases(cases: list[dict[str, Any]], out: Path, *, jobs: int = 2, gmsfric: list[str] | None = None,

@@ -203,7 +203,7 @@ def _subparsers(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser
 
 def _add_common(p: argparse.ArgumentParser, default: Any) -> None:
     g = p.add_argument_group("output and diagnostics")
-    g.add_argument("-q", "--quiet", action="store_true", default=default, help="only warnings and errors; no progress")
+    g.add_argument("-q", "--quiet", action="store_true", default=default, help="no progress and no log below warnings (the result is still printed)")
     g.add_argument("-v", "--verbose", action="store_true", default=default, help="more detail (debug log)")
     g.add_argument("--debug", action="store_true", default=default, help="show the Python traceback of an error")
 
