@@ -165,8 +165,8 @@ class Effect:
         extended models (unfitted), one per value of the effect's nonlinear parameters.
     refine : callable, optional
         ``refine(est_signals) -> [(low, high), ...]``: bounds of the nonlinear parameters when
-        they are refined continuously from the best grid variant (a sharp resonance between
-        two grid points fits poorly and extrapolates badly).
+        they are refined continuously from the best grid variant (a sharp resonance, a large
+        Stribeck hump or a warm-up between two grid points fits poorly and extrapolates badly).
     whole_motion : bool
         The effect acts on the whole motion (a delay, a resonance), so its held-out gain must hold
         on the rows clear of reversals and stops too; what gains only there is the switch of
