@@ -707,7 +707,7 @@ def test_a_real_delay_keeps_its_gain_beyond_a_freely_timed_switch():
     moves: the delay times the inertia too, which no switch of friction does; it keeps its
     held-out gain beyond a freely timed switch and is named within one sample of the planted
     shift (delay plus the sampling hold)."""
-    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop import LoopConfig, run_loop, select
 
     case_id = "single-103-input_delay"
     runs = _campaign_runs(81, case_id)
@@ -716,10 +716,31 @@ def test_a_real_delay_keeps_its_gain_beyond_a_freely_timed_switch():
     assert res.effects == ["input_delay"]
     step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
     assert step.evidence["validation_gain_beyond_a_free_switch"] >= 0.5 * step.evidence["validation_gain"]
+    # its gain is spread over the motion's frequencies, not held by one line
+    assert step.evidence["gain_share_in_one_line"] < 0.5 * select.TONE_GAIN_SHARE
     case = next(c for c in campaign_cases.make_cases(81, emps=False) if c["id"] == case_id)
     planted = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay") + 0.5 / case["rig"]["f_ctrl"]
     dt = float(np.median(np.diff(runs[0].t)))
     assert abs(res.final.params()["delay_s"]["value"] - planted) <= dt
+
+
+def test_a_delay_that_fits_one_tone_of_a_force_ripple_is_refused(monkeypatch):
+    """A rig outside the catalogue (the campaign's seed 93): a force ripple of 7 N at 9.0 Hz in
+    time acts on the axis, and the controller answers it.  Shifting the whole force by 10 ms
+    turns the phase of the answer at 9 Hz and gains 15 % held out (t = 9): a false delay.  Nearly
+    all of that gain lies within 5 % of the ripple's frequency, where the motion has under 1 % of
+    its power, so the delay is refused as a tone; without that test, it enters."""
+    from gmsfric.loop import LoopConfig, run_loop, select
+
+    runs = _campaign_runs(93, "outside-215-ripple")
+    cfg = LoopConfig(progress=False, effects=("input_delay",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == []
+    step = next(s for s in res.steps if s.effect == "input_delay" and "gain_share_in_one_line" in s.evidence)
+    assert step.evidence["gain_share_in_one_line"] >= select.TONE_GAIN_SHARE
+    assert abs(step.evidence["line_hz"] - 9.0) <= 0.3 and "oscillating in time" in step.reason
+    monkeypatch.setattr(select, "_a_single_tone", lambda split, before, after, ev: None)
+    assert run_loop(*runs, cfg).effects == ["input_delay"]
 
 
 def test_a_delay_the_rows_clear_of_reversals_confirm_only_nominally_enters_when_they_keep_its_share():
