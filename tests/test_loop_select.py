@@ -211,6 +211,25 @@ def test_simes_needs_only_the_larger_p_when_both_tests_see_the_effect(p_a, p_b, 
     assert (t, m) == (chosen[0], chosen[2])
 
 
+def test_a_real_delay_on_a_sine_run_is_not_taken_for_a_tone(monkeypatch):
+    """A delay of 3 ms on the loop's own rig moved on one sine of 0.8 Hz: the held-out gain lies
+    most on the motion's own line and its harmonics (the friction's switches), where the motion
+    has its power, so the test for a force oscillating in time lets it through and it is named."""
+    from gmsfric.loop import rigs, select
+
+    def sine(rig, rng):
+        t = np.arange(int(round(rig.duration * rig.fs))) / rig.fs
+        return 0.5 * rig.travel * np.sin(2 * np.pi * 0.8 * t + rng.uniform(0, 2 * np.pi))
+
+    monkeypatch.setattr(rigs, "_trajectory", sine)
+    est, val = (simulate_rig(Rig(effect="input_delay", seed=seed)) for seed in (1, 2))
+    res = run_loop(est, val, LoopConfig(progress=False, effects=("input_delay",)))
+    assert res.effects == ["input_delay"]
+    step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
+    assert abs(step.evidence["line_hz"] - 0.8) <= 0.05 and step.evidence["motion_share_in_the_line"] >= 0.5
+    assert step.evidence["gain_share_in_one_line"] < select.TONE_GAIN_SHARE
+
+
 def _dwell_rig_data(seed: int = 5) -> tuple[AxisData, float]:
     """A clean rig whose reference dwells (standstill with a holding force: the drive's integrator
     and the friction share it)."""
