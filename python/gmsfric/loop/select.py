@@ -466,15 +466,14 @@ def paired_chunk_test(r0: Array, r1: Array, chunk: int, acting: Array | None = N
 
 def simes_pair(a: tuple[float, float, int], b: tuple[float, float, int]) -> tuple[float, float, int]:
     """Two one-sided tests of one effect combined by Simes' rule, ``p = min(2 p_min, p_max)``,
-    returned with the ``t`` and ``m`` of the test that sets it.  The two tests share chunks (the
-    chunks where an effect acts are among all the informative ones), so their statistics are
-    positively correlated, the case in which Simes' rule holds its level (Sarkar, 1998) while
-    spending less of it than doubling the smaller p-value (Bonferroni): when both tests see the
-    effect, the larger p-value alone suffices."""
+    returned with the ``t`` and ``m`` of the more significant test.  The two tests share chunks
+    (the chunks where an effect acts are among all the informative ones), so their statistics
+    are positively correlated, the case in which Simes' rule holds its level (Sarkar, 1998)
+    while spending less of it than doubling the smaller p-value (Bonferroni): when both tests
+    see the effect, the larger p-value alone suffices.  The ``t`` is the one Bonferroni's rule
+    reported, so the rule is never stricter than that one."""
     lo, hi = sorted((a, b), key=lambda r: r[1])
-    if 2.0 * lo[1] <= hi[1]:
-        return lo[0], min(1.0, 2.0 * lo[1]), lo[2]
-    return hi
+    return lo[0], min(1.0, 2.0 * lo[1], hi[1]), lo[2]
 
 
 def _mean_test(d: Array) -> tuple[float, float, int]:
