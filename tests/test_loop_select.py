@@ -12,7 +12,7 @@ from gmsfric import InvalidInputError
 from gmsfric.loop import LoopConfig, run_loop
 from gmsfric.loop.data import AxisData
 from gmsfric.loop.rigs import Rig, simulate_rig
-from gmsfric.loop.select import _cv_sse, baseline_physics, make_split, paired_chunk_test, simes_pair
+from gmsfric.loop.select import _cv_sse, baseline_physics, make_split, paired_chunk_test
 
 
 @pytest.mark.parametrize(
@@ -143,7 +143,7 @@ def test_heldout_test_of_a_warm_up_counts_the_chunks_where_it_acts():
     baseline differs from the null's by amounts the run's own structure makes help in some chunks
     and hurt in others.  Over every chunk where the two models differ those chunks dilute the
     gain; over the chunks where the warm-up's fitted force is at least its mean they do not, and
-    the test of an effect acting over time (both ways, combined by Simes' rule) sees it."""
+    the test of an effect acting over time (both ways, the smaller p doubled) sees it."""
     n, chunk = 1500, 60
     k = np.arange(n)
     sgn = np.sign(np.sin(2 * np.pi * k / 150))
@@ -183,8 +183,7 @@ def test_heldout_test_of_an_effect_acting_over_time_keeps_its_level():
 def test_an_effect_acting_over_time_keeps_its_level_when_the_models_differ_everywhere():
     """Two equally good models that differ on every chunk (independent coloured noise), the
     warm-up acting in the first third: the all-chunk test and the acting-chunk test overlap and
-    disagree, and their Simes combination still holds the one-sided 5 % level within sampling
-    error."""
+    disagree, and their combination still holds the one-sided 5 % level within sampling error."""
     rng = np.random.default_rng(9)
     n, chunk, reps = 1500, 60, 1000
     warm = 3.0 * np.exp(-np.arange(n) / 250)
@@ -193,21 +192,6 @@ def test_an_effect_acting_over_time_keeps_its_level_when_the_models_differ_every
         e = _coloured(rng, n)
         rejected += paired_chunk_test(e + 0.5 * _coloured(rng, n, 0.95), e + 0.5 * _coloured(rng, n, 0.95), chunk, warm)[1] <= 0.05
     assert rejected / reps < 0.075
-
-
-@pytest.mark.parametrize("p_a, p_b, expected", [(0.002, 0.0025, 0.0025), (0.0025, 0.002, 0.0025), (0.001, 0.3, 0.002),
-                                                 (0.6, 0.9, 0.9), (0.7, 0.8, 0.8), (0.0, 0.5, 0.0)])
-def test_simes_needs_only_the_larger_p_when_both_tests_see_the_effect(p_a, p_b, expected):
-    """Simes' rule is ``min(2 p_min, p_max)``: never above Bonferroni's doubled minimum, never
-    below the smaller p, and the larger p alone when both are within a factor two; the ``t`` and
-    chunk count returned are those of the more significant test (as Bonferroni's), so a ``t``
-    threshold asked beside the level is judged as before."""
-    a, b = (4.0, p_a, 7), (2.5, p_b, 9)
-    t, p, m = simes_pair(a, b)
-    assert p == pytest.approx(expected)
-    assert min(p_a, p_b) <= p <= min(1.0, 2.0 * min(p_a, p_b))
-    chosen = a if p_a <= p_b else b
-    assert (t, m) == (chosen[0], chosen[2])
 
 
 def test_a_real_delay_on_a_sine_run_is_not_taken_for_a_tone(monkeypatch):

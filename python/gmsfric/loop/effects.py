@@ -216,8 +216,8 @@ class Effect:
     acts_over_time : bool
         The effect's force changes over the run (a warm-up dies out, a drift grows): its held-out
         tests (forward, in pairs, in exchanges and backward) are also made on the chunks where its
-        own fitted force is at least its mean chunk's (``select.ACTING_FRACTION``), the two
-        p-values combined by Simes' rule (``select.simes_pair``).  With the effect, the baseline is refitted
+        own fitted force is at least its mean chunk's (``select.ACTING_FRACTION``), the smaller
+        p-value doubled (``select.paired_chunk_test``).  With the effect, the baseline is refitted
         and differs from the null's everywhere, and the chunks where a warm-up has died out would
         weigh as much as those where it acts.  The chunks are chosen from the fitted force, not
         the measured one, so a useless effect still gains nothing on them on average.
