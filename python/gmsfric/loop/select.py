@@ -1265,6 +1265,8 @@ def single_tone(split: Split, before: LinearModel, after: LinearModel) -> tuple[
     decrease within :data:`TONE_HALF_WIDTH` of it (at least two bins either side), and the share of
     the motion's (velocity's) power there."""
     rows = split.val_test
+    if rows.sum() < 8:
+        return 0.0, 0.0, 1.0  # too few rows to tell one line from the rest
     y = split.val.y
     r0 = np.where(rows, y - before.predict(split.val), 0.0)
     r1 = np.where(rows, y - after.predict(split.val), 0.0)
