@@ -66,6 +66,9 @@ def test_the_jittered_rotary_log_is_resampled_and_reported_in_rotary_units(ci_ru
     p = d["final"]["parameters"]
     assert p["Fv"]["unit"] == "N m s/rad" and p["M"]["unit"] == "kg m^2" and p["Fc"]["unit"] == "N m"
     assert d["standstill"]["rest_speed_unit"] == "rad/s"
+    lim = d["detection_limits"]
+    assert lim["presliding_hysteresis"]["unit"] == "rad" and lim["stribeck"]["unit"] == "rad/s"
+    assert lim["input_delay"]["smallest_delay"] > est["median_step_s"]  # within a sample: the alignment
 
 
 def test_a_case_command_can_be_pasted_into_a_shell(ci_run):

@@ -9,8 +9,8 @@ import pytest
 
 from gmsfric.loop.data import AxisData
 from gmsfric.loop import LoopConfig, run_loop
-from gmsfric.loop.effects import (CATALOGUE, COMPLIANCE_GRID_ZETAS, _compliance_variants, _play, _presliding, _stribeck_ok, dip_resolution,
-                                   resonance_limit, stribeck_fall, velocity_resolution)
+from gmsfric.loop.effects import (CATALOGUE, COMPLIANCE_GRID_ZETAS, _compliance_variants, _delay, _play, _presliding, _stribeck, _stribeck_ok,
+                                   detection_limits, dip_resolution, resonance_limit, stribeck_fall, velocity_resolution)
 from gmsfric.loop.rigs import Rig, simulate_rig
 from gmsfric.loop.idim import LinearModel, Signals
 
@@ -54,6 +54,38 @@ def test_presliding_grid_starts_at_two_resolution_steps():
     # ... and blocks from two resolution steps of the raw position that drives them
     assert min(min(t.hyper[1:]) for t in terms) == pytest.approx(2 * s.resolution)
     assert max(max(t.hyper[1:]) for t in terms) <= 0.01 * np.ptp(s.q) * (1 + 1e-12)
+
+
+def test_the_reported_detection_limits_are_the_ranges_the_variants_span():
+    """What the report says a log can show is what the loop tries on it: the narrowest pre-sliding
+    block, the shortest delay, the narrowest Stribeck curve and the band of resonances of the
+    variants themselves, in SI with their units (rotary: rad, rad/s)."""
+    s, _ = _stick_at_reversal()
+    empty, r = LinearModel([]), np.zeros(s.n_rows)
+    lim = detection_limits(s)
+
+    def hyper(variants, name):
+        return [t.hyper for m in variants for t in m.terms if t.name == name]
+
+    blocks = [h for hs in hyper(_presliding(empty, s, r), "presliding_hysteresis") for h in hs[1:]]
+    assert lim["presliding_hysteresis"]["smallest_break_displacement"] == pytest.approx(min(blocks))
+    assert lim["presliding_hysteresis"]["largest_break_displacement"] == pytest.approx(max(blocks))
+    assert lim["position_resolution"]["value"] == s.resolution and lim["position_resolution"]["unit"] == "m"
+    delays = [m.delay for m in _delay(empty, s, r)]
+    assert lim["input_delay"]["smallest_delay"] == pytest.approx(min(delays)) and lim["input_delay"]["smallest_delay"] > s.dt
+    widths = [h[0] for h in hyper(_stribeck(empty, s, r), "stribeck")]
+    assert lim["stribeck"]["smallest_stribeck_speed"] == pytest.approx(min(widths))
+    freqs = [h[0] for h in hyper(_compliance_variants(empty, s, r), "compliance")]
+    assert (lim["compliance"]["lowest_resonance"], lim["compliance"]["highest_resonance"]) == pytest.approx((min(freqs), max(freqs)))
+    assert all(e["looked_for"] for k, e in lim.items() if "looked_for" in e)
+    rot = detection_limits(s, rotary=True)
+    assert rot["presliding_hysteresis"]["unit"] == "rad" and rot["stribeck"]["unit"] == "rad/s" and rot["compliance"]["unit"] == "Hz"
+    # a travel of a few encoder steps leaves pre-sliding nothing to fit: said so, not a range
+    t = np.arange(0.0, 4.0, 1.0 / FS)
+    q = np.round(3 * RES * np.sin(2 * np.pi * 0.5 * t) / RES) * RES
+    short = Signals(AxisData(t, q, np.sign(np.cos(2 * np.pi * 0.5 * t)), source="short"))
+    assert detection_limits(short)["presliding_hysteresis"]["looked_for"] is False
+    assert _presliding(empty, short, np.zeros(short.n_rows)) == []
 
 
 def _params(fc: float, ds: float, vs: float) -> dict[str, dict[str, float]]:

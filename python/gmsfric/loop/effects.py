@@ -41,6 +41,7 @@ from scipy import ndimage, signal
 from .. import curves
 from .. import models as _models
 from ..axis import legendre_columns
+from ..units import si_unit
 from .idim import Array, LinearModel, Signals, Term, advance, decimation_settling_rows
 
 # ------------------------------------------------------------------------------------------
@@ -730,6 +731,39 @@ def _blocks_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None:
         if n.startswith("w_switch") and v["value"] < -2 * v["std"]:
             return f"negative switch break force {n} = {v['value']:.3g}"
     return None
+
+
+def detection_limits(s: Signals, rotary: bool = False) -> dict[str, dict[str, float | str]]:
+    """What the run ``s`` can show of each effect whose grid its sampling or resolution bounds:
+    the range of the nonlinear parameter the loop tries, in SI (``unit``: m or rad, m/s or
+    rad/s, s, Hz).
+    Outside it an effect is not looked for, or is something else: a delay within a sample is
+    the timing alignment, a pre-sliding contact narrower than the resolution switches where the
+    measured position reverses (the null pre-sliding is tested against), a Stribeck curve
+    narrower than the velocity resolution only marks the rows next to reversals."""
+    lo, hi = presliding_range(s)
+    f_hi = resonance_limit(s)
+    limits: dict[str, dict[str, float | str]] = {
+        "position_resolution": {"value": float(s.resolution), "quantity": "position",
+                                "how": "the encoder step (1st percentile of the sample-to-sample changes) or the position noise, whichever is larger"},
+        "presliding_hysteresis": {"smallest_break_displacement": float(lo), "largest_break_displacement": float(hi), "quantity": "position",
+                                  "below": "a contact that narrow switches within the resolution: the switch of friction at the reversal"},
+        "input_delay": {"smallest_delay": float(DELAY_STEPS[0] * s.dt), "largest_delay": float(DELAY_STEPS[-1] * s.dt), "quantity": "time",
+                        "below": "timing within a sample is the alignment (reported under alignment), not an effect"},
+        "stribeck": {"smallest_stribeck_speed": float(velocity_resolution(s)), "largest_stribeck_speed": float(STRIBECK_MAX_WIDTH * s.v_scale),
+                     "quantity": "velocity", "below": "a narrower curve only marks the rows next to reversals and stops"},
+        "compliance": {"lowest_resonance": float(COMPLIANCE_MIN_HZ), "highest_resonance": float(max(f_hi, COMPLIANCE_MIN_HZ)), "quantity": "frequency",
+                       "above": "beyond the position filter's cut-off or the rows' Nyquist frequency the filter has removed it"},
+        "friction_drift": {"shortest_warm_up": float(DRIFT_TAU_RANGE[0] * s.duration), "longest_warm_up": float(DRIFT_TAU_RANGE[1] * s.duration),
+                           "quantity": "time", "below": "a faster change is a transient the run cannot tell from its start"},
+    }
+    looked_for = {"presliding_hysteresis": hi > lo, "stribeck": STRIBECK_MAX_WIDTH * s.v_scale > velocity_resolution(s),
+                  "compliance": f_hi > COMPLIANCE_MIN_HZ}
+    for name, entry in limits.items():
+        entry["unit"] = si_unit(str(entry["quantity"]), rotary)
+        if name in looked_for:
+            entry["looked_for"] = bool(looked_for[name])  # an empty range: the run cannot show it at all
+    return limits
 
 
 CATALOGUE: dict[str, Effect] = {

@@ -144,6 +144,7 @@ class LoopResult(Result):
     standstill: dict[str, Any] = field(default_factory=dict)
     selection: dict[str, Any] = field(default_factory=dict)
     timing: dict[str, Any] = field(default_factory=dict)
+    detection_limits: dict[str, Any] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict, repr=False)
     diagnostics: list[Any] = field(default_factory=list, repr=False)
 
@@ -184,6 +185,7 @@ class LoopResult(Result):
             "standstill": self.standstill,
             "selection": self.selection,
             "timing": self.timing,
+            "detection_limits": self.detection_limits,
         }
 
     def axis_model(self) -> "AxisModel":
@@ -213,6 +215,19 @@ class LoopResult(Result):
         from .plots import figures
 
         return figures(self)
+
+
+def _limits_line(lim: dict[str, Any], rotary: bool) -> str:
+    """One line of what the estimation run can show: the smallest pre-sliding contact, delay and
+    Stribeck speed, and the resonances, in display units."""
+    def v(name: str, key: str) -> str:
+        e = lim[name]
+        return _units.format_value(e[key], e["quantity"], rotary, digits=3)
+
+    return (f"this log resolves: position {v('position_resolution', 'value')}; pre-sliding blocks from "
+            f"{v('presliding_hysteresis', 'smallest_break_displacement')}; delays from {v('input_delay', 'smallest_delay')} "
+            f"(within a sample: alignment); Stribeck speeds from {v('stribeck', 'smallest_stribeck_speed')}; resonances "
+            f"{v('compliance', 'lowest_resonance')} to {v('compliance', 'highest_resonance')}")
 
 
 def format_table(result: "LoopResult") -> str:
@@ -251,6 +266,9 @@ def format_table(result: "LoopResult") -> str:
                          f"{t['max_step_s'] * 1e3:.4g} ms, {t['irregular_steps_pct']:.1f} % irregular)"
                          + (f"; position step as logged {_units.format_value(t['position_step_as_logged'], 'position', rot)}"
                             if "position_step_as_logged" in t else ""))
+    lim = d.get("detection_limits") or {}
+    if lim:
+        lines.append("  " + _limits_line(lim, rot))
     for s in d["steps"]:
         e = "   n/a" if s["estimation_error_pct"] is None else f"{s['estimation_error_pct']:8.3f}"
         v = "   n/a" if s["validation_error_pct"] is None else f"{s['validation_error_pct']:8.3f}"

@@ -74,7 +74,7 @@ from ..errors import IdentificationError, InvalidInputError
 from ..identify.diagnostics import emit
 from .checks import check_result
 from .data import AxisData
-from .effects import CATALOGUE, DELAY_STEPS, Effect, dip_resolution, settled_rows, switch_timing
+from .effects import CATALOGUE, DELAY_STEPS, Effect, detection_limits, dip_resolution, settled_rows, switch_timing
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
 from .residuals import Finding, analyse
 from .results import LoopResult, Step
@@ -1497,6 +1497,7 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
     if split.val is not split.est:
         timing = {"estimation": timing, "validation": dict(getattr(split.val.data, "timing", {}) or {})}
     res.timing = timing
+    res.detection_limits = detection_limits(S, rot)
     return res
 
 
