@@ -742,7 +742,7 @@ def test_a_delay_that_fits_one_tone_of_a_force_ripple_is_refused(monkeypatch):
     step = next(s for s in res.steps if s.effect == "input_delay" and "gain_share_in_one_line" in s.evidence)
     assert step.evidence["gain_share_in_one_line"] >= select.TONE_GAIN_SHARE
     assert abs(step.evidence["line_hz"] - 9.0) <= 0.3 and "oscillating in time" in step.reason
-    monkeypatch.setattr(select, "_a_single_tone", lambda split, before, after, ev: None)
+    monkeypatch.setattr(select, "_a_single_tone", lambda split, before, after, chunk, level, ev: None)
     assert run_loop(*runs, cfg).effects == ["input_delay"]
 
 

@@ -213,6 +213,36 @@ def test_a_real_delay_on_a_sine_run_is_not_taken_for_a_tone(monkeypatch):
     assert step.evidence["gain_share_in_one_line"] < select.TONE_GAIN_SHARE
 
 
+def _chattering_delay_run(seed: int, fs: float = 1000.0, tau: float = 0.003) -> AxisData:
+    """A slow random move with a 2 um chatter at 38 Hz (the closed loop's oscillation, which a
+    delay causes), logged with a 3 ms delay between the force commanded and its effect."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(20.0 * fs)) / fs
+    b, a = signal.butter(2, 0.6 / (fs / 2))
+    q = signal.filtfilt(b, a, rng.standard_normal(t.size))
+    q = 0.05 * q / np.abs(q).max() + 2e-6 * np.sin(2 * np.pi * 38.0 * t + rng.uniform(0, 2 * np.pi))
+    qd = np.gradient(q, t)
+    force = 150.0 * np.gradient(qd, t) + 600.0 * qd + 50.0 * np.tanh(qd / 1e-4)
+    k = int(round(tau * fs))
+    measured = np.concatenate((force[k:], np.full(k, force[-1])))  # commanded tau before it acts
+    return AxisData(t, np.round(q / 1e-7) * 1e-7, measured + 5.0 * rng.standard_normal(t.size), source=f"chatter {seed}")
+
+
+def test_a_real_delay_whose_gain_lies_in_its_own_chatter_is_not_taken_for_a_tone():
+    """A delay in a stiff loop makes it chatter: the force oscillates at one frequency where the
+    motion hardly moves, and most of the delay's held-out gain lies in that line, as a ripple's
+    would.  Unlike a ripple's phase, the delay also predicts the rest of the spectrum better
+    (significant with the line taken out of both residuals), so it is named."""
+    from gmsfric.loop import select
+
+    res = run_loop(_chattering_delay_run(1), _chattering_delay_run(2), LoopConfig(progress=False, effects=("input_delay",)))
+    assert res.effects == ["input_delay"]
+    ev = next(s for s in res.steps if s.effect == "input_delay" and s.accepted).evidence
+    assert abs(ev["line_hz"] - 38.0) <= 0.5  # the chatter holds the gain ...
+    assert ev["gain_share_in_one_line"] >= select.TONE_GAIN_SHARE and ev["motion_share_in_the_line"] < select.TONE_MOTION_SHARE
+    assert ev["p_heldout_outside_the_line"] <= ev["level"]  # ... and the rest confirms the delay
+
+
 def _dwell_rig_data(seed: int = 5) -> tuple[AxisData, float]:
     """A clean rig whose reference dwells (standstill with a holding force: the drive's integrator
     and the friction share it)."""
