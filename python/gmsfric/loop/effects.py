@@ -500,7 +500,7 @@ def fitted_period(model: LinearModel, s: Signals, r: Array, period: float, odd: 
     Xb, y, steps = model.X(s)[rows], s.y[rows], model.delay / s.dt
 
     def sse(p: float) -> float:
-        sine = Term("period", ("s", "c"), lambda s, h: (np.sign(s.qd)[:, None] if odd else 1.0) * _fourier(s, (h[0],), 1), (p,), ("period",))
+        sine = Term("period", ("sin", "cos"), lambda sig, h: (np.sign(sig.qd)[:, None] if odd else 1.0) * _fourier(sig, (h[0],), 1), (p,), ("period",))
         X = np.hstack([Xb, term_rows(sine, s, steps)[rows]])
         c, *_ = np.linalg.lstsq(X, y, rcond=None)
         return float(np.sum((y - X @ c) ** 2))
