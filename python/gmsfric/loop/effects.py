@@ -36,13 +36,13 @@ from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage, optimize, signal
+from scipy import ndimage, signal
 
 from .. import curves
 from .. import models as _models
 from ..axis import legendre_columns
 from ..units import si_unit
-from .idim import Array, LinearModel, Signals, Term, advance, decimation_settling_rows, term_rows
+from .idim import Array, LinearModel, Signals, Term, advance, decimation_settling_rows
 
 # ------------------------------------------------------------------------------------------
 # column builders (full rate)
@@ -484,37 +484,10 @@ def position_periodogram(grid: Array, prof: Array) -> tuple[Array, Array]:
     return freqs[1:], spec[1:]
 
 
-def fitted_period(model: LinearModel, s: Signals, r: Array, period: float, odd: bool) -> float:
-    """The period near ``period`` (from :func:`position_periods`) at which one sine and cosine of
-    the position, added to ``model``, fit the rows where ``r`` is defined best (least squares,
-    the model's own coefficients fitted with them), within half a periodogram bin either way.
-    The periodogram is taken of the current model's residual, from which that model has already
-    taken what its terms share with the sine (an offset its mean over the travel, a Coulomb level
-    its odd part): a period read off it is biased, by 2-4 % on a rotary joint's gravity over 2.6
-    turns (an outside audit), and the slightly wrong sine leaves a residual along the travel that
-    another effect then absorbs."""
-    rows = np.isfinite(r)
-    span = float(np.ptp(s.q))
-    if rows.sum() < 20 or not span > 0:
-        return period
-    Xb, y, steps = model.X(s)[rows], s.y[rows], model.delay / s.dt
-
-    def sse(p: float) -> float:
-        sine = Term("period", ("sin", "cos"), lambda sig, h: (np.sign(sig.qd)[:, None] if odd else 1.0) * _fourier(sig, (h[0],), 1), (p,), ("period",))
-        X = np.hstack([Xb, term_rows(sine, s, steps)[rows]])
-        c, *_ = np.linalg.lstsq(X, y, rcond=None)
-        return float(np.sum((y - X @ c) ** 2))
-
-    half = 0.5 * period**2 / span  # half the periodogram's spacing (1 / travel), as a period
-    res = optimize.minimize_scalar(sse, bounds=(max(period - half, 0.5 * period), period + half), method="bounded",
-                                   options={"xatol": 1e-4 * period})
-    return float(res.x) if res.success and res.fun < sse(period) else period
-
-
 def _position_variants(model: LinearModel, s: Signals, r: Array, odd: bool, name: str) -> list[LinearModel]:
     prefix = "dFc_q" if odd else "Fq"
     hypers: list[tuple] = [(0, d) for d in (1, 2, 3, 4, 6, 8)]
-    periods = [fitted_period(model, s, r, p, odd) for p in position_periods(s, r, odd)]
+    periods = position_periods(s, r, odd)
     for p in periods:
         for nh in (1, 2, 3):
             hypers.append((1, nh, p))
