@@ -348,4 +348,3 @@ def test_a_warm_up_between_the_grid_time_constants_is_refined_to_its_own():
     assert m is not None
     got = next(tm.hyper[0] for tm in m.terms if tm.name == "friction_drift")
     assert got * st.split.est.duration == pytest.approx(tau * data.t[-1], rel=0.15)
-

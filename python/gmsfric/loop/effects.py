@@ -742,27 +742,27 @@ def detection_limits(s: Signals, rotary: bool = False) -> dict[str, dict[str, fl
     measured position reverses (the null pre-sliding is tested against), a Stribeck curve
     narrower than the velocity resolution only marks the rows next to reversals."""
     lo, hi = presliding_range(s)
+    v_lo, v_hi = velocity_resolution(s), STRIBECK_MAX_WIDTH * s.v_scale
     f_hi = resonance_limit(s)
+    # ``looked_for`` false: the range is empty, the run cannot show the effect at all
     limits: dict[str, dict[str, float | str]] = {
         "position_resolution": {"value": float(s.resolution), "quantity": "position",
                                 "how": "the encoder step (1st percentile of the sample-to-sample changes) or the position noise, whichever is larger"},
         "presliding_hysteresis": {"smallest_break_displacement": float(lo), "largest_break_displacement": float(hi), "quantity": "position",
+                                  "looked_for": bool(hi > lo),
                                   "below": "a contact that narrow switches within the resolution: the switch of friction at the reversal"},
         "input_delay": {"smallest_delay": float(DELAY_STEPS[0] * s.dt), "largest_delay": float(DELAY_STEPS[-1] * s.dt), "quantity": "time",
                         "below": "timing within a sample is the alignment (reported under alignment), not an effect"},
-        "stribeck": {"smallest_stribeck_speed": float(velocity_resolution(s)), "largest_stribeck_speed": float(STRIBECK_MAX_WIDTH * s.v_scale),
-                     "quantity": "velocity", "below": "a narrower curve only marks the rows next to reversals and stops"},
+        "stribeck": {"smallest_stribeck_speed": float(v_lo), "largest_stribeck_speed": float(v_hi), "quantity": "velocity", "looked_for": bool(v_hi > v_lo),
+                     "below": "a narrower curve only marks the rows next to reversals and stops"},
         "compliance": {"lowest_resonance": float(COMPLIANCE_MIN_HZ), "highest_resonance": float(max(f_hi, COMPLIANCE_MIN_HZ)), "quantity": "frequency",
+                       "looked_for": bool(f_hi > COMPLIANCE_MIN_HZ),
                        "above": "beyond the position filter's cut-off or the rows' Nyquist frequency the filter has removed it"},
         "friction_drift": {"shortest_warm_up": float(DRIFT_TAU_RANGE[0] * s.duration), "longest_warm_up": float(DRIFT_TAU_RANGE[1] * s.duration),
                            "quantity": "time", "below": "a faster change is a transient the run cannot tell from its start"},
     }
-    looked_for = {"presliding_hysteresis": hi > lo, "stribeck": STRIBECK_MAX_WIDTH * s.v_scale > velocity_resolution(s),
-                  "compliance": f_hi > COMPLIANCE_MIN_HZ}
-    for name, entry in limits.items():
+    for entry in limits.values():
         entry["unit"] = si_unit(str(entry["quantity"]), rotary)
-        if name in looked_for:
-            entry["looked_for"] = bool(looked_for[name])  # an empty range: the run cannot show it at all
     return limits
 
 

@@ -129,6 +129,8 @@ DELAY_CLEAR_SHARE = 1.0 / 3.0
 TONE_HALF_WIDTH = 0.05
 TONE_GAIN_SHARE = 0.6
 TONE_MOTION_SHARE = 0.05
+#: :func:`single_tone` where the held-out rows show no line (too few, or no gain at all).
+NO_LINE = {"line_hz": 0.0, "share": 0.0, "motion": 1.0, "t_off": 0.0, "p_off": 1.0}
 
 #: Terms whose force is friction (their sum is projected on ``Fc sign(qd) + Fv qd`` to follow the
 #: effective Coulomb and viscous levels of a model).  ``asymmetric_friction`` is left out: its
@@ -1269,7 +1271,7 @@ def single_tone(split: Split, before: LinearModel, after: LinearModel, chunk: in
     the held-out chunk test of the two residuals with that line taken out of both."""
     rows = split.val_test
     if rows.sum() < 8:
-        return {"line_hz": 0.0, "share": 0.0, "motion": 1.0, "t_off": 0.0, "p_off": 1.0}  # too few rows to tell one line from the rest
+        return dict(NO_LINE)  # too few rows to tell one line from the rest
     y = split.val.y
     r0 = np.where(rows, y - before.predict(split.val), 0.0)
     r1 = np.where(rows, y - after.predict(split.val), 0.0)
@@ -1280,7 +1282,7 @@ def single_tone(split: Split, before: LinearModel, after: LinearModel, chunk: in
     decrease = np.clip(np.abs(z0) ** 2 - np.abs(z1) ** 2, 0.0, None)
     motion = np.abs(np.fft.rfft(v)) ** 2
     if not (decrease.sum() > 0 and motion.sum() > 0):
-        return {"line_hz": 0.0, "share": 0.0, "motion": 1.0, "t_off": 0.0, "p_off": 1.0}
+        return dict(NO_LINE)
     k = int(np.argmax(decrease))
     band = np.abs(f - f[k]) <= max(TONE_HALF_WIDTH * f[k], 2.0 * (f[1] - f[0]))
     off0, off1 = (np.fft.irfft(np.where(band, 0.0, z), r0.size)[rows] for z in (z0, z1))
