@@ -350,14 +350,12 @@ def test_a_warm_up_between_the_grid_time_constants_is_refined_to_its_own():
     assert got * st.split.est.duration == pytest.approx(tau * data.t[-1], rel=0.15)
 
 
-def test_a_gravity_period_is_fitted_with_the_model_not_read_off_its_residual():
-    """A rotary joint with gravity ``1.1 sin(q + 3.2)`` N m over about 2.1 turns: the baseline has
-    already taken the sine's mean (offset) and odd part (Coulomb level), so the period read off
-    its residual's periodogram is 19 % off 2 pi; fitted with the model's own columns it is within
-    1 %."""
+def _gravity_joint(amplitude_rad: float):
+    """A rotary joint moved at random over about ``2 amplitude_rad`` with gravity
+    ``1.1 sin(q + 3.2)`` N m, Coulomb friction and a small viscous term; the baseline fitted to it
+    and its residual."""
     from scipy import signal
 
-    from gmsfric.loop.effects import fitted_period, position_periods
     from gmsfric.loop.idim import fit_baseline
 
     rng = np.random.default_rng(4)
@@ -365,12 +363,21 @@ def test_a_gravity_period_is_fitted_with_the_model_not_read_off_its_residual():
     t = np.arange(int(30 * fs)) / fs
     b, a = signal.butter(2, 0.3 / (fs / 2))
     q = signal.filtfilt(b, a, rng.standard_normal(t.size))
-    q = 12.0 * q / np.abs(q).max() + 1.0
+    q = amplitude_rad * q / np.abs(q).max() + 1.0
     qd = np.gradient(q, t)
     f = 0.02 * np.gradient(qd, t) + 0.01 * qd + 1.4 * np.tanh(qd / 0.01) + 1.1 * np.sin(q + 3.2) + 0.01 * rng.standard_normal(t.size)
     s = Signals(AxisData(t, np.round(q / 1e-5) * 1e-5, f, rotary=True, source="joint"))
     base = fit_baseline(s)
-    r = s.y - base.predict(s)
+    return s, base, s.y - base.predict(s)
+
+
+def test_a_gravity_period_is_fitted_with_the_model_not_read_off_its_residual():
+    """Gravity over about 2.1 turns: the baseline has already taken the sine's mean (offset) and
+    odd part (Coulomb level), so the period read off its residual's periodogram is 19 % off
+    2 pi; fitted with the model's own columns it is within 1 %."""
+    from gmsfric.loop.effects import fitted_period, position_periods
+
+    s, base, r = _gravity_joint(12.0)
     read = min(position_periods(s, r, False), key=lambda p: abs(p - 2 * np.pi))
     fitted = fitted_period(base, s, r, read, False)
     assert abs(read / (2 * np.pi) - 1.0) > 0.05
@@ -378,26 +385,13 @@ def test_a_gravity_period_is_fitted_with_the_model_not_read_off_its_residual():
 
 
 def test_no_fourier_period_offered_is_longer_than_the_travel_allows():
-    """A gravity sine over 1.4 turns is, over that travel, a smooth trend for the Legendre basis:
-    neither the periodogram's refinement nor the fit with the model's columns may stretch a
-    period beyond 1/1.5 of the travel (the bound on the periodogram's peaks), which on a real
-    EMPS run once let a "period" grow to 1.5 travels."""
-    from scipy import signal
-
+    """Gravity over 1.4 turns is, over that travel, a smooth trend for the Legendre basis: neither
+    the periodogram's refinement nor the fit with the model's columns may stretch a period beyond
+    1/1.5 of the travel (the bound on the periodogram's peaks), which on a real EMPS run once let
+    a "period" grow to 1.5 travels."""
     from gmsfric.loop.effects import MIN_PERIODS_OVER_TRAVEL, fitted_period, position_periods
-    from gmsfric.loop.idim import fit_baseline
 
-    rng = np.random.default_rng(4)
-    fs = 500.0
-    t = np.arange(int(30 * fs)) / fs
-    b, a = signal.butter(2, 0.3 / (fs / 2))
-    q = signal.filtfilt(b, a, rng.standard_normal(t.size))
-    q = 8.0 * q / np.abs(q).max() + 1.0
-    qd = np.gradient(q, t)
-    f = 0.02 * np.gradient(qd, t) + 0.01 * qd + 1.4 * np.tanh(qd / 0.01) + 1.1 * np.sin(q + 3.2) + 0.01 * rng.standard_normal(t.size)
-    s = Signals(AxisData(t, np.round(q / 1e-5) * 1e-5, f, rotary=True, source="joint"))
-    base = fit_baseline(s)
-    r = s.y - base.predict(s)
+    s, base, r = _gravity_joint(8.0)
     periods = position_periods(s, r, False)
     assert periods
     longest = np.ptp(s.q) / MIN_PERIODS_OVER_TRAVEL
