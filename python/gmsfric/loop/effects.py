@@ -417,11 +417,6 @@ def reversal_switch(term: Term) -> Term:
     return Term(term.name, term.param_names[:1], term.build, term.hyper[:1], term.hyper_names[:1])
 
 
-#: Fewest periods of a Fourier term over the travel: a longer "period" is a smooth trend, which
-#: the Legendre basis fits; a period refined near a peak is held to this bound too.
-MIN_PERIODS_OVER_TRAVEL = 1.5
-
-
 def position_periods(s: Signals, r: Array, odd: bool, n_peaks: int = 2) -> list[float]:
     """Periods (m) of the strongest peaks of the residual's periodogram in the position domain.
 
@@ -435,7 +430,8 @@ def position_periods(s: Signals, r: Array, odd: bool, n_peaks: int = 2) -> list[
     if freqs.size < 4:
         return []
     span = grid[-1] - grid[0]
-    ok = freqs > MIN_PERIODS_OVER_TRAVEL / span
+    # at least 1.5 periods over the travel: a longer "period" is a smooth trend (Legendre)
+    ok = freqs > 1.5 / span
     power = np.where(ok, power, 0.0)
     idx, _ = signal.find_peaks(np.concatenate(([0.0], power, [0.0])))
     idx = idx - 1
@@ -448,8 +444,7 @@ def _refine_period(grid: Array, prof: Array, f0: float, df: float) -> float:
     by one over the travel, so a peak is only known to within that spacing."""
     X0 = np.ones_like(grid)
     best_f, best = f0, -1.0
-    f_lo = max(f0 - df, 0.5 * f0, MIN_PERIODS_OVER_TRAVEL / float(grid[-1] - grid[0]))
-    for f in np.linspace(min(f_lo, f0), f0 + df, 41):
+    for f in np.linspace(max(f0 - df, 0.5 * f0), f0 + df, 41):
         X = np.column_stack([X0, np.sin(2 * np.pi * f * grid), np.cos(2 * np.pi * f * grid)])
         c, *_ = np.linalg.lstsq(X, prof, rcond=None)
         explained = float(np.sum((X[:, 1:] @ c[1:]) ** 2))
@@ -493,7 +488,9 @@ def fitted_period(model: LinearModel, s: Signals, r: Array, period: float, odd: 
     """The period near ``period`` (from :func:`position_periods`) at which one sine and cosine of
     the position, added to ``model``, fit the rows where ``r`` is defined best (least squares,
     the model's own coefficients fitted with them), within half a periodogram bin either way and
-    no longer than :data:`MIN_PERIODS_OVER_TRAVEL` allows.
+    no longer than the travel unless ``period`` already is (a sine of a longer period is a trend
+    along the travel, which the Legendre basis fits; on a real EMPS run the fit stretched a
+    period of one travel to one and a half).
     The periodogram is taken of the current model's residual, from which that model has already
     taken what its terms share with the sine (an offset its mean over the travel, a Coulomb level
     its odd part): a period read off it is biased, by 2-4 % on a rotary joint's gravity over 2.6
@@ -512,7 +509,7 @@ def fitted_period(model: LinearModel, s: Signals, r: Array, period: float, odd: 
         return float(np.sum((y - X @ c) ** 2))
 
     half = 0.5 * period**2 / span  # half the periodogram's spacing (1 / travel), as a period
-    longest = max(period, min(period + half, span / MIN_PERIODS_OVER_TRAVEL))
+    longest = max(period, min(period + half, span))
     res = optimize.minimize_scalar(sse, bounds=(max(period - half, 0.5 * period), longest), method="bounded",
                                    options={"xatol": 1e-4 * period})
     return float(res.x) if res.success and res.fun < sse(period) else period
