@@ -512,6 +512,7 @@ def fitted_period(model: LinearModel, s: Signals, r: Array, period: float, odd: 
     longest = max(period, min(period + half, span))
     res = optimize.minimize_scalar(sse, bounds=(max(period - half, 0.5 * period), longest), method="bounded",
                                    options={"xatol": 1e-4 * period})
+    # a refinement that fits no better than the period it started from is no refinement
     return float(res.x) if res.success and res.fun < sse(period) else period
 
 
