@@ -484,6 +484,15 @@ def position_periodogram(grid: Array, prof: Array) -> tuple[Array, Array]:
     return freqs[1:], spec[1:]
 
 
+def _position_term(name: str, prefix: str, h: tuple, odd: bool, rotary: bool) -> Term:
+    """A position basis (:func:`_basis` with hyper-parameters ``h``) as a term: a friction level
+    that changes along the travel (times ``sign(qd)``) when ``odd``, a force of the position
+    otherwise."""
+    if odd:
+        return Term(name, _basis_names(prefix, h, rotary), lambda s, h: np.sign(s.qd)[:, None] * _basis(s, h), h, ())
+    return Term(name, _basis_names(prefix, h, rotary), lambda s, h: _basis(s, h), h, ())
+
+
 def fitted_period(model: LinearModel, s: Signals, r: Array, period: float, odd: bool) -> float:
     """The period near ``period`` (from :func:`position_periods`) at which one sine and cosine of
     the position, added to ``model``, fit the rows where ``r`` is defined best (least squares,
@@ -498,12 +507,13 @@ def fitted_period(model: LinearModel, s: Signals, r: Array, period: float, odd: 
     another effect then absorbs."""
     rows = np.isfinite(r)
     span = float(np.ptp(s.q))
-    if rows.sum() < 20 or not span > 0:
+    # the periodogram's refinement returns at most two travels; anything else is left as given
+    if rows.sum() < 20 or not span > 0 or not 0.0 < period <= 2.0 * span:
         return period
     Xb, y, steps = model.X(s)[rows], s.y[rows], model.delay / s.dt
 
     def sse(p: float) -> float:
-        sine = Term("period", ("sin", "cos"), lambda sig, h: (np.sign(sig.qd)[:, None] if odd else 1.0) * _fourier(sig, (h[0],), 1), (p,), ("period",))
+        sine = _position_term("period", "sine", (1, 1, p), odd, False)
         X = np.hstack([Xb, term_rows(sine, s, steps)[rows]])
         c, *_ = np.linalg.lstsq(X, y, rcond=None)
         return float(np.sum((y - X @ c) ** 2))
@@ -528,11 +538,7 @@ def _position_variants(model: LinearModel, s: Signals, r: Array, odd: bool, name
     out = []
     rotary = bool(getattr(s.data, "rotary", False))
     for h in hypers:
-        if odd:
-            t = Term(name, _basis_names(prefix, h, rotary), lambda s, h: np.sign(s.qd)[:, None] * _basis(s, h), h, ())
-        else:
-            t = Term(name, _basis_names(prefix, h, rotary), lambda s, h: _basis(s, h), h, ())
-        out.append(_add(model, t, name))
+        out.append(_add(model, _position_term(name, prefix, h, odd, rotary), name))
     return out
 
 
