@@ -39,8 +39,8 @@ The loop runs in named stages (:func:`run_loop`):
    * the held-out error must also drop by ``min_gain`` (relative), the BIC on the estimation
      rows must decrease, the effect's own parameters must be physical, and the baseline's
      physical parameters must stay plausible: mass and effective viscous coefficient physical,
-     the effective Coulomb level (all friction terms projected on ``sign(qd)``, ``qd``) within a
-     factor ``max_parameter_ratio`` of the baseline's -- an effect may not buy its gain by
+     the effective Coulomb level (all friction terms projected on ``sign(qd)``, ``qd``) not below
+     ``1 / max_parameter_ratio`` of the baseline's -- an effect may not buy its gain by
      explaining the friction away.
 
    Among the effects that pass, the one with the largest held-out gain enters (effects compete on
@@ -170,8 +170,8 @@ class LoopConfig:
     min_gain : float
         Smallest relative decrease of the held-out error that counts (0.01 = 1 %; in [0, 1)).
     max_parameter_ratio : float
-        An effect may change the baseline's effective Coulomb level by at most this factor either
-        way (> 1); the mass and viscous coefficient must stay physical.
+        An effect may lower the baseline's effective Coulomb level by at most this factor (> 1);
+        the mass and viscous coefficient must stay physical.
     rest_fraction : float
         Rows slower than this fraction of the run's speed scale (99th percentile of ``|qd|``) are
         standstill, left out of fits and tests (in [0, 0.5)).
@@ -658,8 +658,11 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
     hump -27: it does not corrupt the baseline, it mends part of what the baseline got wrong).  They may move a lot: the baseline absorbs whatever a missing effect correlates
     with (a spring ``k q`` looks like ``-k/w^2 qdd`` on an oscillation, a delay shifts force onto
     ``qdd`` and ``qd``), and the right effect gives it back.  The Coulomb level is what the axis
-    slides at, a level every trajectory shows: an effect that changes the effective level by more
-    than ``max_parameter_ratio`` (either way) explains friction away instead of adding to it."""
+    slides at, a level every trajectory shows: an effect that lowers the effective level below
+    ``1 / max_parameter_ratio`` of the baseline's explains friction away instead of adding to it.
+    One that raises it gives back friction the baseline had lost to a force anti-correlated with
+    ``sign(qd)`` on that run (an offset on a run that moves more one way, a cable's pull): the
+    right effect does that, and the mass and viscous coefficient stay checked."""
     now = baseline_physics(m, split)
     report: dict[str, Any] = {}
     why = None
@@ -674,8 +677,8 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
             why = f"implausible baseline: the mass becomes {a:.4g} (negative)"
         elif k == "Fv" and a < -3.0 * sd and a < b:
             why = f"implausible baseline: the viscous coefficient becomes {a:.4g} (negative)"
-        elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and not 1.0 / cfg.max_parameter_ratio <= ratio <= cfg.max_parameter_ratio:
-            why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, beyond a factor {cfg.max_parameter_ratio:g})"
+        elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and ratio < 1.0 / cfg.max_parameter_ratio:
+            why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, below 1/{cfg.max_parameter_ratio:g} of the baseline's)"
     return report, why
 
 
