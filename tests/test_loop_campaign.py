@@ -688,6 +688,29 @@ def test_an_effect_that_gives_back_the_coulomb_level_the_baseline_lost_enters():
     assert not [d for d in res.diagnostics if d["code"] == "held_back"]
 
 
+def test_a_cable_pull_that_gives_back_the_coulomb_level_enters_on_a_rotary_joint():
+    """Seed 101 `pair-154`: a rotary joint sliding at 0.344 N m, with a viscous asymmetry and a
+    cable's pull (a tanh of the angle) that opposes the joint's motion more one way than the
+    other on the estimation run.  The baseline takes the pull for friction lost, a Coulomb level
+    of about half the rig's; the position force gives the level back (more than doubles it) and
+    enters, then the asymmetry, and the final level is the rig's."""
+    import warnings
+
+    from gmsfric.loop import LoopConfig, run_loop
+
+    case_id = "pair-154-asymmetric_friction+position_dependent_force"
+    true_fc = next(c for c in campaign_cases.make_cases(101, emps=False) if c["id"] == case_id)["rig"]["Fc"]
+    runs = _campaign_runs(101, case_id)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = run_loop(*runs, LoopConfig(progress=False))
+    assert res.baseline.params()["Fc"]["value"] < 0.6 * true_fc
+    assert sorted(res.effects) == ["asymmetric_friction", "position_dependent_force"]
+    step = next(s for s in res.steps if s.effect == "position_dependent_force" and s.accepted)
+    assert step.evidence["baseline_parameters"]["Fc"]["ratio"] > 2.0
+    assert abs(res.final.params()["Fc"]["value"] - true_fc) < 0.1 * true_fc
+
+
 def test_a_delay_must_beat_a_freely_timed_switch_of_friction(monkeypatch):
     """A clean Karnopp rig on random moves (the campaign's seed 81, 5 kHz): the contact sticks at
     every reversal, and the filtered velocity's sign switches about 8 samples off the friction's

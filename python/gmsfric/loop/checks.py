@@ -135,11 +135,11 @@ def _strongest_refused(result: "LoopResult", flag: str) -> dict[str, "Step"]:
 
 def _check_held_back(found: Findings, result: "LoopResult") -> None:
     """An effect that passed every test of the data and was refused only because it moves the
-    baseline's physics too far (``max_parameter_ratio``, a negative mass or viscosity) is either
-    the right effect on a baseline that absorbed it (a run that moves more one way than the
-    other, an offset the Coulomb level stood in for) or an effect that explains friction away:
-    the data alone cannot tell, so the user is shown the effect and its strongest held-out
-    evidence."""
+    baseline's physics too far (the Coulomb level lowered beyond ``max_parameter_ratio``, a
+    negative mass or viscosity) is either the right effect on a baseline that absorbed something
+    else (a Stribeck hump the baseline took into a negative viscous coefficient) or an effect
+    that explains friction away: the data alone cannot tell, so the user is shown the effect and
+    its strongest held-out evidence."""
     for effect, step in _strongest_refused(result, "held_back_by_plausibility").items():
         ev = step.evidence
         after = ev["moving_rows_error_pct"]["validation"]
@@ -147,7 +147,7 @@ def _check_held_back(found: Findings, result: "LoopResult") -> None:
         why = step.reason.removeprefix("implausible baseline: ")
         found.add("held_back", f"{effect} passed every test of the data (held-out error {before:.3g} -> {after:.3g} % on the {ev['judged_on']}, "
                                f"t = {ev['t_heldout']:.1f}) but was not added, to keep the baseline plausible ({why}): either the baseline had absorbed it "
-                               "(a run that moves more one way than the other lets the Coulomb level stand in for an offset) or it explains friction away; "
+                               "(a missing Stribeck hump can leave it a negative viscous coefficient) or it explains friction away; "
                                "compare the two models' parameters (the step's in the JSON) before trusting either", effect)
 
 
