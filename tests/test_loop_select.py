@@ -488,3 +488,39 @@ def test_a_probe_that_wins_only_at_reversals_gives_way_clear_of_them():
     chosen = Effect("test_effect", "a tone", "time", variants, physical, probe=probe, chosen_clear_of_reversals=True)
     m, _ = _best_variant(chosen, st.model, st, cfg, np.zeros(split.est.n_rows))
     assert m is not None and next(tm for tm in m.terms if tm.name == "test_effect").hyper == (1.0,)
+
+
+@pytest.mark.parametrize(
+    "now, refused",
+    [
+        # the second audit's seed 6 `s057` (a rotary joint's gravity; rig: Fc 0.145 N m, Fv 0.0047 N m s/rad):
+        # the baseline took it into twice the Coulomb level and a negative viscous coefficient, and the
+        # position force makes both physical again: the level it lowers was no reference
+        ({"M": 0.01346, "Fv": 0.00447, "Fc": 0.1466}, None),
+        # the same fall of the level that leaves the viscous coefficient negative mends nothing
+        ({"M": 0.01346, "Fv": -0.02, "Fc": 0.1466}, "Coulomb level"),
+        # a rise of the level gives back friction the baseline lost; the viscous coefficient stays checked
+        ({"M": 0.01346, "Fv": -0.05, "Fc": 0.7}, "viscous coefficient"),
+    ],
+)
+def test_the_coulomb_guard_trusts_only_a_physical_baseline(monkeypatch, now, refused):
+    from gmsfric.loop import select
+
+    base = {"M": 0.01456, "Fv": -0.03093, "Fc": 0.3162}
+    std = {"M": 2e-4, "Fv": 1.5e-3, "Fc": 2e-3}
+    monkeypatch.setattr(select, "baseline_physics", lambda m, split: now)
+    report, why = select._plausibility(base, std, None, None, LoopConfig())
+    assert report["Fc"]["ratio"] == pytest.approx(now["Fc"] / base["Fc"], rel=1e-3)
+    assert (why is None) if refused is None else (refused in why)
+
+
+def test_the_coulomb_guard_refuses_a_fall_of_a_physical_baselines_level(monkeypatch):
+    from gmsfric.loop import select
+
+    base = {"M": 0.01456, "Fv": 0.03, "Fc": 0.3162}
+    std = {"M": 2e-4, "Fv": 1.5e-3, "Fc": 2e-3}
+    monkeypatch.setattr(select, "baseline_physics", lambda m, split: {"M": 0.0135, "Fv": 0.032, "Fc": 0.1466})
+    _, why = select._plausibility(base, std, None, None, LoopConfig())
+    assert why is not None and "Coulomb level" in why and "below 1/2" in why
+    monkeypatch.setattr(select, "baseline_physics", lambda m, split: {"M": 0.0135, "Fv": 0.032, "Fc": 0.7})
+    assert select._plausibility(base, std, None, None, LoopConfig())[1] is None

@@ -662,8 +662,14 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
     ``1 / max_parameter_ratio`` of the baseline's explains friction away instead of adding to it.
     One that raises it gives back friction the baseline had lost to a force anti-correlated with
     ``sign(qd)`` on that run (an offset on a run that moves more one way, a cable's pull): the
-    right effect does that, and the mass and viscous coefficient stay checked."""
+    right effect does that, and the mass and viscous coefficient stay checked.  A baseline whose
+    own mass or viscous coefficient is unphysical has absorbed a missing effect, and its level is
+    no reference: a step that makes both physical may lower the level (a rotary joint's gravity
+    the baseline took into twice the Coulomb level and a negative viscous coefficient)."""
     now = baseline_physics(m, split)
+    checked = [k for k in ("M", "Fv") if k in base_phys]
+    mends = (any(base_phys[k] < -3.0 * base_std.get(k, 0.0) for k in checked)
+             and all(now.get(k, -np.inf) >= -3.0 * base_std.get(k, 0.0) for k in checked))
     report: dict[str, Any] = {}
     why = None
     for k, b in base_phys.items():
@@ -677,7 +683,7 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
             why = f"implausible baseline: the mass becomes {a:.4g} (negative)"
         elif k == "Fv" and a < -3.0 * sd and a < b:
             why = f"implausible baseline: the viscous coefficient becomes {a:.4g} (negative)"
-        elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and ratio < 1.0 / cfg.max_parameter_ratio:
+        elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and ratio < 1.0 / cfg.max_parameter_ratio and not mends:
             why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, below 1/{cfg.max_parameter_ratio:g} of the baseline's)"
     return report, why
 
