@@ -40,7 +40,8 @@ The loop runs in named stages (:func:`run_loop`):
      rows must decrease, the effect's own parameters must be physical, and the baseline's
      physical parameters must stay plausible: mass and effective viscous coefficient physical,
      the effective Coulomb level (all friction terms projected on ``sign(qd)``, ``qd``) not below
-     ``1 / max_parameter_ratio`` of the baseline's -- an effect may not buy its gain by
+     ``1 / max_parameter_ratio`` of the baseline's, unless the step makes an unphysical
+     baseline's mass and viscous coefficient physical -- an effect may not buy its gain by
      explaining the friction away.
 
    Among the effects that pass, the one with the largest held-out gain enters (effects compete on
@@ -170,8 +171,9 @@ class LoopConfig:
     min_gain : float
         Smallest relative decrease of the held-out error that counts (0.01 = 1 %; in [0, 1)).
     max_parameter_ratio : float
-        An effect may lower the baseline's effective Coulomb level by at most this factor (> 1);
-        the mass and viscous coefficient must stay physical.
+        An effect may lower the baseline's effective Coulomb level by at most this factor (> 1),
+        unless it makes an unphysical baseline's mass and viscous coefficient physical; the mass
+        and viscous coefficient must stay physical.
     rest_fraction : float
         Rows slower than this fraction of the run's speed scale (99th percentile of ``|qd|``) are
         standstill, left out of fits and tests (in [0, 0.5)).
