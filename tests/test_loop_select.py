@@ -501,6 +501,8 @@ def test_a_probe_that_wins_only_at_reversals_gives_way_clear_of_them():
         ({"M": 0.01346, "Fv": -0.02, "Fc": 0.1466}, "Coulomb level"),
         # a rise of the level gives back friction the baseline lost; the viscous coefficient stays checked
         ({"M": 0.01346, "Fv": -0.05, "Fc": 0.7}, "viscous coefficient"),
+        # mending the baseline never excuses a level explained away to nothing
+        ({"M": 0.01346, "Fv": 0.00447, "Fc": -0.01}, "Coulomb level"),
     ],
 )
 def test_the_coulomb_guard_trusts_only_a_physical_baseline(monkeypatch, now, refused):

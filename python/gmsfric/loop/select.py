@@ -666,8 +666,9 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
     ``sign(qd)`` on that run (an offset on a run that moves more one way, a cable's pull): the
     right effect does that, and the mass and viscous coefficient stay checked.  A baseline whose
     own mass or viscous coefficient is unphysical has absorbed a missing effect, and its level is
-    no reference: a step that makes both physical may lower the level (a rotary joint's gravity
-    the baseline took into twice the Coulomb level and a negative viscous coefficient)."""
+    no reference: a step that makes both physical may lower the level, not below 3 of its standard
+    errors (a rotary joint's gravity the baseline took into twice the Coulomb level and a
+    negative viscous coefficient)."""
     now = baseline_physics(m, split)
     checked = [k for k in ("M", "Fv") if k in base_phys]
     mends = (any(base_phys[k] < -3.0 * base_std.get(k, 0.0) for k in checked)
@@ -685,7 +686,7 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
             why = f"implausible baseline: the mass becomes {a:.4g} (negative)"
         elif k == "Fv" and a < -3.0 * sd and a < b:
             why = f"implausible baseline: the viscous coefficient becomes {a:.4g} (negative)"
-        elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and ratio < 1.0 / cfg.max_parameter_ratio and not mends:
+        elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and ratio < 1.0 / cfg.max_parameter_ratio and not (mends and a > 3.0 * sd):
             why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, below 1/{cfg.max_parameter_ratio:g} of the baseline's)"
     return report, why
 
