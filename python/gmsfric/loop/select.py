@@ -120,6 +120,13 @@ JOINT_REFIT_TOL = 1e-3
 #: rigs: 0.19-0.21).
 DELAY_CLEAR_SHARE = 1.0 / 3.0
 
+#: Share of its held-out gain on all moving rows that a delay must keep beyond a freely timed
+#: switch of friction for that comparison to need only the nominal level.  A late filtered switch
+#: taken for a delay keeps little beyond it (false delays of the campaign: 2-15 %); a real delay
+#: keeps about all (seed 103 ``single-101``: 91 % of 89 %, over the six chunks where the models
+#: differ: t = 2.6).
+DELAY_SWITCH_SHARE = 0.5
+
 #: A delay's held-out gain held by one spectral line: the line's relative half-width, the share of
 #: the gain (decrease of the residual's power) in it and the largest share of the motion's
 #: (velocity's) power there (:func:`single_tone`).  On the campaign's force-ripple rigs (a tone in
@@ -1183,7 +1190,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
         ev.update(t_heldout_beyond_a_free_switch=round(h_sw.t, 2), validation_gain_beyond_a_free_switch=round(h_sw.gain, 5))
         if tone is not None:
             reasons.append(tone)
-        elif h_sw.p > level or h_sw.gain < cfg.min_gain:
+        elif not _beats_a_free_switch(h_sw, h, level, cfg, share_may_relax=not clear_consistent):
             reasons.append(f"no better on held-out data than the switch of friction at a time of its own (gain "
                            f"{100 * h_sw.gain:.2f} %, t = {h_sw.t:.2f}, p = {h_sw.p:.2g}): a contact that sticks at "
                            "reversals makes the filtered velocity switch late, and a delay of the whole force absorbs that lag")
@@ -1332,6 +1339,18 @@ def _beyond_a_free_switch(m: LinearModel, null: LinearModel, split: Split, cfg: 
     return heldout(split, null_sw, m_sw, chunk, effect="input_delay")
 
 
+def _beats_a_free_switch(h_sw: HeldOut, h: HeldOut, level: float, cfg: LoopConfig, share_may_relax: bool = True) -> bool:
+    """Whether a delay's held-out gain beyond a freely timed switch of friction (``h_sw``) stands,
+    given its gain on all moving rows (``h``, already shown at the family-wise ``level``): at
+    ``level``, or at the nominal ``alpha`` when it keeps :data:`DELAY_SWITCH_SHARE` of that gain
+    (``share_may_relax``: not for a delay the rows clear of reversals confirm only at ``alpha``).
+    The comparison asks whether the gain is the switch's, not whether there is one; a delay that
+    explains far more than the switch can hold it in the few chunks where the two differ."""
+    if h_sw.gain < cfg.min_gain:
+        return False
+    return h_sw.p <= level or (share_may_relax and h_sw.p <= cfg.alpha and h_sw.gain >= DELAY_SWITCH_SHARE * h.gain)
+
+
 def _with_switch_timing(m: LinearModel, split: Split, cfg: LoopConfig) -> LinearModel:
     """``m`` (unfitted) plus ``sign(qd)`` with a coefficient of its own, advanced by the shift of
     :data:`DELAY_STEPS` beyond ``m``'s timing that cross-validates best on the estimation rows,
@@ -1426,7 +1445,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
                 mg["validation_gain_away_from_reversals"] = round(hf.gain, 5) if hf is not None else None
             if ok and eff.name == "input_delay":
                 hs = _beyond_a_free_switch(both, reduced, split, cfg, st.chunk)
-                ok = hs.p <= level and hs.gain >= cfg.min_gain and _a_single_tone(split, reduced, both, st.chunk, level, mg) is None
+                ok = _beats_a_free_switch(hs, hm, level, cfg) and _a_single_tone(split, reduced, both, st.chunk, level, mg) is None
                 mg["t_heldout_beyond_a_free_switch"] = round(hs.t, 2)
             marginals[eff.name] = mg
             if not ok:
