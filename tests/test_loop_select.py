@@ -526,3 +526,25 @@ def test_the_coulomb_guard_refuses_a_fall_of_a_physical_baselines_level(monkeypa
     assert why is not None and "Coulomb level" in why and "below 1/2" in why
     monkeypatch.setattr(select, "baseline_physics", lambda m, split: {"M": 0.0135, "Fv": 0.032, "Fc": 0.7})
     assert select._plausibility(base, std, None, None, LoopConfig())[1] is None
+
+
+@pytest.mark.parametrize(
+    "p_sw, gain_sw, relax, stands",
+    [
+        (0.024, 0.91, True, True),  # seed 103 single-101: most of its gain kept, p below alpha
+        (0.010, 0.20, True, True),  # at the family-wise level, whatever share it keeps
+        (0.024, 0.25, True, False),  # under half of its gain: the switch may explain the rest
+        (0.060, 0.91, True, False),  # above alpha
+        (0.024, 0.91, False, False),  # already relaxed on the rows clear of reversals
+        (0.001, 0.04, True, False),  # below the minimum gain
+    ],
+)
+def test_a_delay_beyond_a_free_switch_needs_the_level_unless_it_keeps_most_of_its_gain(p_sw, gain_sw, relax, stands):
+    """The free-switch comparison of a delay whose held-out gain on all moving rows is 60 % (level
+    0.0125): at the family-wise level, or at alpha when it keeps half of that gain."""
+    from gmsfric.loop.select import HeldOut, _beats_a_free_switch
+
+    cfg = LoopConfig(progress=False)
+    h = HeldOut(t=5.7, p=0.001, gain=0.60, chunks=6, error_before=10.0, error_after=4.0)
+    h_sw = HeldOut(t=2.6, p=p_sw, gain=gain_sw, chunks=6, error_before=9.0, error_after=9.0 * (1 - gain_sw))
+    assert _beats_a_free_switch(h_sw, h, 0.0125, cfg, share_may_relax=relax) is stands
