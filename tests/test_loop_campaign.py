@@ -257,10 +257,38 @@ def test_a_force_ripple_in_time_refuses_compliance(monkeypatch):
     def upper_only(p, s):
         return None if p["zeta"]["value"] <= effects.COMPLIANCE_MAX_ZETA else "no peak"
 
-    monkeypatch.setitem(effects.CATALOGUE, eff.name, dataclasses.replace(eff, physical=upper_only, probe=lambda p, s: upper_only(p, s) is not None))
+    # the tone in time, compliance's rival, would refuse it too: left out to show the band's part
+    monkeypatch.setitem(effects.CATALOGUE, eff.name,
+                        dataclasses.replace(eff, physical=upper_only, probe=lambda p, s: upper_only(p, s) is not None, rivals=None))
     res = run_loop(*runs, cfg)
     assert res.effects == ["compliance"]
     assert res.final.params()["zeta"]["value"] < effects.COMPLIANCE_MIN_ZETA
+
+
+def test_a_force_ripple_fitted_by_a_damped_resonance_gives_way_to_a_tone_in_time(monkeypatch):
+    """A force ripple of 0.15 N m at 5.78 Hz in time (outside the catalogue; the campaign's seed 105,
+    a rotary rig logged at 250 Hz): the controller answers it, so the acceleration carries it, and
+    a resonance at 5.9 Hz with a damping ratio of 0.01, inside the band, amplifies that and gains
+    55 % held out (t = 8.2).  A sine and cosine of time at the residual's periodogram peak fit the
+    estimation rows better: compliance is refused, and without its rival it is named."""
+    import dataclasses
+
+    from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop import effects
+
+    case_id = "outside-215-ripple"
+    runs = _campaign_runs(105, case_id)
+    ripple = next(c for c in campaign_cases.make_cases(105, emps=False) if c["id"] == case_id)["outside"][0]
+    cfg = LoopConfig(progress=False, effects=("compliance",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == []
+    refused = [s.reason for s in res.steps if s.effect == "compliance" and "oscillating in time" in s.reason]
+    assert refused
+    f_tone = float(refused[0].split("oscillating in time at ")[1].split(" Hz")[0])
+    assert abs(f_tone - ripple["freq"]) < 0.01 * ripple["freq"]
+    eff = effects.CATALOGUE["compliance"]
+    monkeypatch.setitem(effects.CATALOGUE, eff.name, dataclasses.replace(eff, rivals=None))
+    assert run_loop(*runs, cfg).effects == ["compliance"]
 
 
 def test_a_stribeck_dip_only_at_reversals_is_refused(monkeypatch):

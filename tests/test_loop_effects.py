@@ -396,3 +396,31 @@ def test_a_fitted_period_is_not_stretched_beyond_the_travel():
     travel = float(np.ptp(s.q))
     for odd in (False, True):
         assert fitted_period(base, s, r, 0.95 * travel, odd) <= travel * (1 + 1e-9)
+
+
+def test_the_tone_rival_of_a_resonance_is_at_the_residuals_periodogram_peak():
+    """A residual holding a sine of 6.13 Hz in time, with gaps where rows are left out: the tone
+    rivals of a resonance chosen at 6.0 Hz sit on the peak, within the grid step (an eighth of
+    the run's frequency resolution), and a resonance far from it gets no rival there."""
+    from gmsfric.loop.effects import tone_rivals
+    from gmsfric.loop.idim import LinearModel, Term
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 20.0, 1e-3)
+    data = AxisData(t, 0.01 * np.sin(2 * np.pi * 0.5 * t), np.cos(2 * np.pi * 0.5 * t), source="tone")
+    s = Signals(data)
+    rt = s.rows["t"]
+    r = np.sin(2 * np.pi * 6.13 * rt + 0.4) + 0.5 * rng.standard_normal(rt.size)
+    r[(rt % 2.0) < 0.3] = np.nan  # rows left out (standstill)
+    base = LinearModel([], [])
+
+    def chosen(fn):
+        m = base.copy()
+        m.terms = [Term("compliance", ("m_load",), lambda s, h: s.qdd, (fn, 0.05), ("fn_hz", "zeta"))]
+        return m
+
+    freqs = [m.terms[-1].hyper[0] for m, _ in tone_rivals(base, chosen(6.0), s, r)]
+    step = 1.0 / (8.0 * np.ptp(rt))
+    assert len(freqs) == 5 and abs(np.median(freqs) - 6.13) <= step
+    far = [m.terms[-1].hyper[0] for m, _ in tone_rivals(base, chosen(12.0), s, r)]
+    assert all(abs(f - 6.13) > 1.0 for f in far)

@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage, optimize, signal
+from scipy import fft, ndimage, optimize, signal
 
 from .. import curves
 from .. import models as _models
@@ -222,6 +222,13 @@ class Effect:
         and differs from the null's everywhere, and the chunks where a warm-up has died out would
         weigh as much as those where it acts.  The chunks are chosen from the fitted force, not
         the measured one, so a useless effect still gains nothing on them on average.
+    rivals : callable, optional
+        ``rivals(model, chosen, est_signals, residual_rows) -> [(rival, what), ...]``: models of
+        what the effect may be taken for, built around its ``chosen`` variant from the current
+        ``model`` and its residual (NaN off the fitted rows), each with a phrase saying what it
+        is.  When one cross-validates better than the chosen variant, the effect is refused
+        wherever that variant was chosen: unlike a probe, a rival is no value of the effect's own
+        parameters (a force oscillating in time for a resonance).
     chosen_clear_of_reversals : bool
         When no valid variant is chosen on the moving estimation rows (a probe fits best), the
         choice (grid and refinement) is made again on the estimation rows clear of reversals and
@@ -251,6 +258,7 @@ class Effect:
     creeping: bool = False
     acts_over_time: bool = False
     chosen_clear_of_reversals: bool = False
+    rivals: Callable[[LinearModel, LinearModel, Signals, Array], list[tuple[LinearModel, str]]] | None = None
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
         """Why the ``model`` fitted on the run ``s`` is not physical for this effect (``None`` when
@@ -664,6 +672,44 @@ def resonance_limit(s: Signals) -> float:
     return min(0.4 * s.fs / s.dec, s.cutoff)
 
 
+#: Band searched for a force oscillating in time, relative to a resonance's frequency.
+TONE_SEARCH_BAND = 0.15
+
+
+def _tone_in_time(s: Signals, f_hz: float) -> Array:
+    return np.column_stack([np.sin(2 * np.pi * f_hz * s.t), np.cos(2 * np.pi * f_hz * s.t)])
+
+
+def tone_rivals(model: LinearModel, chosen: LinearModel, s: Signals, r: Array) -> list[tuple[LinearModel, str]]:
+    """A force oscillating in time near the chosen resonance's frequency, whatever the motion
+    does (a force ripple, a tone of the drive), as rivals of ``compliance``: the current
+    ``model`` plus ``sin`` and ``cos`` of ``2 pi f t``.  The controller answers such a force, so
+    the motion carries it at ``f``, and a lightly damped "resonance" there, which amplifies the
+    acceleration at ``f``, predicts it on held-out data too.  A real resonance rings after what
+    excites it, with the phase of each excitation, which no single tone follows over a run.
+    ``f`` is the peak of the residual's periodogram (the rows left out set to zero, zero-padded
+    to a grid of an eighth of the run's frequency resolution) within :data:`TONE_SEARCH_BAND` of
+    the resonance, and its neighbours on that grid (a tone must keep its phase over the run)."""
+    fn = next(t.hyper[0] for t in chosen.terms if t.name == "compliance")
+    rows = np.isfinite(r)
+    if rows.sum() < 10:
+        return []
+    y = np.where(rows, r - float(np.mean(r[rows])), 0.0)
+    n_fft = fft.next_fast_len(8 * y.size, real=True)
+    power = np.abs(fft.rfft(y, n_fft))
+    freqs = fft.rfftfreq(n_fft, s.dt * s.dec)
+    band = np.flatnonzero((freqs >= fn * (1 - TONE_SEARCH_BAND)) & (freqs <= fn * (1 + TONE_SEARCH_BAND)))
+    if band.size == 0:
+        return []
+    peak = band[int(np.argmax(power[band]))]
+    out = []
+    for f in freqs[max(peak - 2, 1) : peak + 3]:
+        m = model.copy()
+        m.terms = m.terms + [Term("tone", ("tone_sin", "tone_cos"), lambda s, h: _tone_in_time(s, h[0]), (float(f),), ("tone_hz",))]
+        out.append((m, f"a force oscillating in time at {f:.4g} Hz whatever the motion does (a ripple, a tone)"))
+    return out
+
+
 def _offset(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     return [_add(model, Term("offset", ("offset",), lambda s, h: np.ones_like(s.q)), "offset")]
 
@@ -823,7 +869,7 @@ CATALOGUE: dict[str, Effect] = {
         Effect("compliance", "a resonance between motor and load (flexible transmission)", "frequency", _compliance_variants, _load_ok,
                refine=lambda s: [(1.0, resonance_limit(s)), (min(COMPLIANCE_PROBE_ZETAS), max(COMPLIANCE_PROBE_ZETAS))], whole_motion=True,
                probe=lambda p, s: not COMPLIANCE_MIN_ZETA <= p["zeta"]["value"] <= COMPLIANCE_MAX_ZETA, consistency_only=True,
-               chosen_clear_of_reversals=True),
+               chosen_clear_of_reversals=True, rivals=tone_rivals),
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }

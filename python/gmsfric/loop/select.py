@@ -835,19 +835,35 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
     that has none there (a probe fits best), the choice is made again on the rows clear of
     reversals and stops, and that variant stands when its fit on all rows is physical too."""
     best, why = _best_variant_on(eff, model, st.split, cfg, r_est, prog)
-    if best is not None or not eff.chosen_clear_of_reversals:
-        return best, why
-    clear = clear_split(st.split)
-    if clear is None:
-        return best, why
-    alt, _ = _best_variant_on(eff, model, clear, cfg, r_est, prog)
-    if alt is None:
-        return None, f"{why}; clear of reversals and stops too" if why else why
-    # chosen on part of the rows, it is fitted and tested on all of them: physical there too
-    w = eff.check(_fit(alt.copy(), st.split), st.split.est)
-    if w is not None:
-        return None, f"{why}; chosen clear of reversals and stops, fitted on all rows: {w}" if why else w
-    return alt, why
+    if best is None and eff.chosen_clear_of_reversals and (clear := clear_split(st.split)) is not None:
+        alt, _ = _best_variant_on(eff, model, clear, cfg, r_est, prog)
+        if alt is None:
+            return None, f"{why}; clear of reversals and stops too" if why else why
+        # chosen on part of the rows, it is fitted and tested on all of them: physical there too
+        w = eff.check(_fit(alt.copy(), st.split), st.split.est)
+        if w is not None:
+            return None, f"{why}; chosen clear of reversals and stops, fitted on all rows: {w}" if why else w
+        best = alt
+    if best is not None and (rival := _rival_fits_better(eff, model, best, st.split, cfg, r_est)) is not None:
+        return None, rival
+    return best, why
+
+
+def _rival_fits_better(eff: Effect, model: LinearModel, chosen: LinearModel, split: Split, cfg: LoopConfig, r_est: Array) -> str | None:
+    """Why the effect's ``chosen`` variant gives way to one of its rivals (:attr:`Effect.rivals`),
+    or ``None`` when none cross-validates better on the moving estimation rows."""
+    if eff.rivals is None:
+        return None
+    by_travel = _by_travel(chosen)
+    cv = _cv(chosen, split, cfg, by_travel)
+    for rival, what in eff.rivals(model, chosen, split.est, r_est):
+        try:
+            cv_rival = _cv(rival, split, cfg, by_travel)
+        except (IdentificationError, np.linalg.LinAlgError, ValueError):
+            continue
+        if cv_rival < cv:
+            return f"{what} fits the estimation rows better ({cv_rival / cv:.2g} of its cross-validated error)"
+    return None
 
 
 def _best_variant_on(eff: Effect, model: LinearModel, split: Split, cfg: LoopConfig, r_est: Array,
