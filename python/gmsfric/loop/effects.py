@@ -689,7 +689,25 @@ def tone_rivals(model: LinearModel, chosen: LinearModel, s: Signals, r: Array) -
     excites it, with the phase of each excitation, which no single tone follows over a run.
     ``f`` is the peak of the residual's periodogram (the rows left out set to zero, zero-padded
     to a grid of an eighth of the run's frequency resolution) within :data:`TONE_SEARCH_BAND` of
-    the resonance, and its neighbours on that grid (a tone must keep its phase over the run)."""
+    the resonance, and its neighbours on that grid (a tone must keep its phase over the run).
+
+    Parameters
+    ----------
+    model : LinearModel
+        The current model, without ``compliance``.
+    chosen : LinearModel
+        ``model`` with the chosen ``compliance`` variant (its ``fn_hz`` sets the band searched).
+    s : Signals
+        The estimation run.
+    r : ndarray
+        The current model's residual on the rows of ``s`` (NaN on the rows left out of the fit).
+
+    Returns
+    -------
+    list of (LinearModel, str)
+        The rivals (unfitted) and what each is, for the refusal's message; empty when fewer than
+        ten rows are fitted or the band holds no frequency of the grid.
+    """
     fn = next(t.hyper[0] for t in chosen.terms if t.name == "compliance")
     rows = np.isfinite(r)
     if rows.sum() < 10:
