@@ -226,9 +226,10 @@ class Effect:
         ``rivals(model, chosen, est_signals, residual_rows) -> [(rival, what), ...]``: models of
         what the effect may be taken for, built around its ``chosen`` variant from the current
         ``model`` and its residual (NaN off the fitted rows), each with a phrase saying what it
-        is.  When one cross-validates better than the chosen variant, the effect is refused
-        wherever that variant was chosen: unlike a probe, a rival is no value of the effect's own
-        parameters (a force oscillating in time for a resonance).
+        is.  When one cross-validates clearly better than the chosen variant
+        (``select.RIVAL_MARGIN``), the effect is refused wherever that variant was chosen: unlike
+        a probe, a rival is no value of the effect's own parameters (a force oscillating in time
+        for a resonance).
     chosen_clear_of_reversals : bool
         When no valid variant is chosen on the moving estimation rows (a probe fits best), the
         choice (grid and refinement) is made again on the estimation rows clear of reversals and

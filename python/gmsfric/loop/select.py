@@ -105,6 +105,12 @@ MIN_TESTED_CHUNKS = 6
 #: on rigs with a planted hump down to 0.3.
 CONTESTED_MARGIN = 0.95
 
+#: A rival (:attr:`Effect.rivals`) refuses an effect only with a cross-validated error at most
+#: this fraction of the chosen variant's.  On the campaign's force-ripple rigs the tone in time
+#: fitted at 0.06-0.5 of the resonance's error and on rigs with resonances at 1.06 or more; where
+#: the data hold neither (the "resonance" gaining nothing) both fit alike, 0.96-1.0.
+RIVAL_MARGIN = 0.9
+
 #: Passes of the joint refit.  One pass chooses each effect given the others as they were, and
 #: the timing alignment chosen after it can make a better choice possible (a force shifted by one
 #: sample, then pre-sliding with two blocks instead of one: 28 % lower cross-validated error on
@@ -833,7 +839,8 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
     """The effect's variant chosen on the moving estimation rows (:func:`_best_variant_on`), and
     why the last invalid one was refused.  For an effect :attr:`Effect.chosen_clear_of_reversals`
     that has none there (a probe fits best), the choice is made again on the rows clear of
-    reversals and stops, and that variant stands when its fit on all rows is physical too."""
+    reversals and stops, and that variant stands when its fit on all rows is physical too.  The
+    chosen variant then meets the effect's rivals (:func:`_rival_fits_better`)."""
     best, why = _best_variant_on(eff, model, st.split, cfg, r_est, prog)
     if best is None and eff.chosen_clear_of_reversals and (clear := clear_split(st.split)) is not None:
         alt, _ = _best_variant_on(eff, model, clear, cfg, r_est, prog)
@@ -851,7 +858,8 @@ def _best_variant(eff: Effect, model: LinearModel, st: _State, cfg: LoopConfig, 
 
 def _rival_fits_better(eff: Effect, model: LinearModel, chosen: LinearModel, split: Split, cfg: LoopConfig, r_est: Array) -> str | None:
     """Why the effect's ``chosen`` variant gives way to one of its rivals (:attr:`Effect.rivals`),
-    or ``None`` when none cross-validates better on the moving estimation rows."""
+    or ``None`` when none cross-validates clearly better (:data:`RIVAL_MARGIN`) on the moving
+    estimation rows."""
     if eff.rivals is None:
         return None
     by_travel = _by_travel(chosen)
@@ -861,7 +869,7 @@ def _rival_fits_better(eff: Effect, model: LinearModel, chosen: LinearModel, spl
             cv_rival = _cv(rival, split, cfg, by_travel)
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             continue
-        if cv_rival < cv:
+        if cv_rival <= RIVAL_MARGIN * cv:
             return f"{what} fits the estimation rows better ({cv_rival / cv:.2g} of its cross-validated error)"
     return None
 
