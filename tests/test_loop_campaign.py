@@ -270,7 +270,8 @@ def test_a_force_ripple_fitted_by_a_damped_resonance_gives_way_to_a_tone_in_time
     a rotary rig logged at 250 Hz): the controller answers it, so the acceleration carries it, and
     a resonance at 5.9 Hz with a damping ratio of 0.01, inside the band, amplifies that and gains
     55 % held out (t = 8.2).  A sine and cosine of time at the residual's periodogram peak fit the
-    estimation rows better: compliance is refused, and without its rival it is named."""
+    estimation rows better: compliance is refused; without its rival, or against a rival that only
+    ties, it is named."""
     import dataclasses
 
     from gmsfric.loop import LoopConfig, run_loop
@@ -288,6 +289,9 @@ def test_a_force_ripple_fitted_by_a_damped_resonance_gives_way_to_a_tone_in_time
     assert abs(f_tone - ripple["freq"]) < 0.01 * ripple["freq"]
     eff = effects.CATALOGUE["compliance"]
     monkeypatch.setitem(effects.CATALOGUE, eff.name, dataclasses.replace(eff, rivals=None))
+    assert run_loop(*runs, cfg).effects == ["compliance"]
+    # a rival that only ties (here the chosen resonance itself) is no evidence against it
+    monkeypatch.setitem(effects.CATALOGUE, eff.name, dataclasses.replace(eff, rivals=lambda model, chosen, s, r: [(chosen, "itself")]))
     assert run_loop(*runs, cfg).effects == ["compliance"]
 
 
