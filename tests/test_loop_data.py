@@ -176,6 +176,78 @@ def test_a_resampled_log_keeps_the_encoder_step_as_its_resolution():
     assert "position_step_as_logged" not in uniform.timing and Signals(uniform).resolution == pytest.approx(step, rel=1e-6)
 
 
+def _fast_moves_with_stops(step: float, fs: float = 1000.0) -> tuple[np.ndarray, np.ndarray]:
+    """Moves of 0.1 m at up to 0.2 m/s with rests between them, where the axis creeps a few steps,
+    quantised to ``step``: one step per sample happens only near a stop, so few changes are as
+    small as the step."""
+    t = np.arange(0.0, 20.0, 1.0 / fs)
+    phase = np.mod(t, 2.0)
+    ramp = np.clip(phase / 1.0, 0.0, 1.0)  # move for 1 s, rest for 1 s
+    smooth = ramp * ramp * (3.0 - 2.0 * ramp)
+    direction = np.where(np.mod(np.floor(t / 2.0), 2.0) == 0.0, 1.0, -1.0)
+    base = np.where(direction > 0, 0.0, 0.1)
+    creep = np.where(phase > 1.0, 3.0 * step * np.sin(np.pi * (phase - 1.0)), 0.0)
+    q = base + direction * 0.1 * smooth + creep
+    return t, step * np.round(q / step)
+
+
+def test_the_encoder_step_is_read_off_the_lattice_a_log_rests_on():
+    """A fast log of fast moves changes by a single step only next to stops, so the 1st
+    percentile of its changes is many steps; the lattice it rests on gives the step, and it is the
+    narrowest pre-sliding block the loop tries, while what counts as standstill is unchanged."""
+    from gmsfric.loop import AxisData, Signals
+    from gmsfric.loop.data import encoder_step, quantisation_step
+
+    step = 5e-8
+    t, q = _fast_moves_with_stops(step)
+    assert quantisation_step(q) > 5 * step
+    assert encoder_step(q) == pytest.approx(step, rel=1e-6)
+    s = Signals(AxisData(t, q, np.sin(t) + 2.0))
+    assert s.contact_resolution == pytest.approx(step, rel=1e-6)
+    assert s.resolution == pytest.approx(quantisation_step(q), rel=1e-6)
+    # written with few digits (a step of 53.3 nm in mm to six decimals): the lattice within 10 %
+    rounded = np.round(_fast_moves_with_stops(5.33e-8)[1] * 1e3, 6) * 1e-3
+    assert encoder_step(rounded) == pytest.approx(5.33e-8, rel=0.05)
+
+
+def test_a_log_stored_more_finely_than_its_sensor_has_no_encoder_step():
+    """A position that never stands still, stored to 50 nm (the real EMPS estimation run changes by
+    multiples of 0.05 um and rests between 1 of 25 000 samples), sits on its storage's lattice: that
+    says nothing about the sensor, and the contact resolution stays the resolution."""
+    from gmsfric.loop import AxisData, Signals
+    from gmsfric.loop.data import encoder_step
+
+    rng = np.random.default_rng(3)
+    t, q = _fast_moves_with_stops(1e-12)
+    noisy = 5e-8 * np.round((q + 2e-5 * rng.standard_normal(t.size)) / 5e-8)
+    assert 0.0 < np.mean(np.diff(noisy) == 0.0) < 1e-3  # it rests between a few samples
+    assert encoder_step(noisy) is None
+    s = Signals(AxisData(t, noisy, np.sin(t) + 2.0))
+    assert s.contact_resolution == s.resolution
+    # a few odd changes of a quarter step (glitches) are not the step: fewer than ten single ones
+    step = 2e-7
+    coarse = step * np.round(_fast_moves_with_stops(1e-12)[1] / step)
+    coarse[[5000, 9000, 13000]] += step / 4
+    assert encoder_step(coarse) is None
+
+
+def test_a_resampled_log_keeps_the_lattice_it_rested_on():
+    """Interpolating onto a uniform grid puts positions between steps: the step is read before,
+    and the contact resolution is that step or the position noise the late stamps leave."""
+    from gmsfric.loop import AxisData, Signals
+    from gmsfric.loop.idim import position_noise
+
+    step = 5e-8
+    t, q = _fast_moves_with_stops(step)
+    rng = np.random.default_rng(7)
+    late = t + np.where(rng.random(t.size) < 0.3, rng.uniform(1e-4, 8e-4, t.size), 0.0)
+    d = AxisData(late, q, np.sin(late) + 2.0)
+    assert d.timing["resampled"] and d.timing["encoder_step_as_logged"] == pytest.approx(step, rel=1e-6)
+    s = Signals(d)
+    assert s.contact_resolution == pytest.approx(max(step, position_noise(d.position, s.q)), rel=1e-9)
+    assert s.contact_resolution < 0.5 * s.resolution
+
+
 def test_uniform_log_is_left_alone(tmp_path):
     t, q, f = _run()
     t = t + 1e-9 * np.random.default_rng(0).standard_normal(t.size)  # rounding in a text file

@@ -105,8 +105,8 @@ def effect_columns(e: dict[str, Any], sig: Signals) -> list[Array]:
 
 def switch_column(sig: Signals) -> Array:
     """Friction of unit level switching where the measured (raw) position reverses: a Maxwell-slip
-    block one position resolution wide, the loop's null for pre-sliding."""
-    return g.simulate_friction(g.MaxwellSlip([1.0 / sig.resolution], [1.0]), sig.t, np.asarray(sig.data.position, dtype=float))
+    block one encoder step wide (the loop's contact resolution), the loop's null for pre-sliding."""
+    return g.simulate_friction(g.MaxwellSlip([1.0 / sig.contact_resolution], [1.0]), sig.t, np.asarray(sig.data.position, dtype=float))
 
 
 def contact_model(e: dict[str, Any]) -> Any:

@@ -56,7 +56,8 @@ class AxisData:
     timing : dict
         The sampling of the time column as read (see :func:`timing_summary`), and whether and
         how the run was resampled; then also ``position_step_as_logged`` (m or rad), the encoder
-        step before the interpolation put positions between steps (the position resolution).
+        step before the interpolation put positions between steps (the position resolution), and
+        ``encoder_step_as_logged`` when the log rested on a lattice (see :func:`encoder_step`).
     """
 
     t: NDArray[np.float64]
@@ -141,6 +142,8 @@ class AxisData:
         step = self.timing["median_step_s"]
         # interpolation puts positions between the encoder's steps: keep the step as logged
         self.timing["position_step_as_logged"] = quantisation_step(self.position)
+        if (lattice := encoder_step(self.position)) is not None:
+            self.timing["encoder_step_as_logged"] = lattice
         n = int(np.floor((self.t[-1] - self.t[0]) / step + 1e-9)) + 1
         tu = self.t[0] + step * np.arange(n)
         for name in ("position", "force", "command", "reference", "disturbance"):
@@ -167,6 +170,37 @@ def quantisation_step(position: NDArray[np.float64]) -> float:
     span = float(np.ptp(position)) or 1.0
     nz = d[d > 1e-12 * span]
     return float(np.percentile(nz, 1)) if nz.size else 0.0
+
+
+#: A lattice is the encoder's when the position stays put between at least this share of samples...
+LATTICE_REST_SHARE = 1e-3
+#: ...and at least this many changes are a single step.
+LATTICE_MIN_SINGLE_STEPS = 10
+
+
+def encoder_step(position: NDArray[np.float64]) -> float | None:
+    """The encoder's step, read off the lattice the log rests on; None when the log shows none.
+
+    The 1st percentile of the changes (:func:`quantisation_step`) overstates the step of a fast
+    log of fast moves, which changes by one step only next to reversals.  The smallest change is
+    the step when at least 99 % of the changes below ten of it are whole multiples of it (within
+    10 %, for logs written with few digits), the position stays put between at least
+    :data:`LATTICE_REST_SHARE` of the samples and :data:`LATTICE_MIN_SINGLE_STEPS` changes are one
+    step.  A log stored more finely than its sensor resolves sits on the lattice of its storage
+    and almost never stands still (the real EMPS runs change by multiples of 0.05 um and stand
+    still between 1 of 25 000 samples): its lattice says nothing about the sensor."""
+    d = np.abs(np.diff(position))
+    span = float(np.ptp(position)) or 1.0
+    at_rest = d <= 1e-12 * span
+    nz = d[~at_rest]
+    if nz.size == 0 or at_rest.mean() < LATTICE_REST_SHARE:
+        return None
+    step = float(nz.min())
+    r = nz[nz < 10.0 * step] / step
+    on_lattice = np.abs(r - np.round(r)) <= 0.1
+    if on_lattice.mean() < 0.99 or np.count_nonzero(np.abs(r - 1.0) <= 0.1) < LATTICE_MIN_SINGLE_STEPS:
+        return None
+    return step
 
 
 #: Relative spread of the time steps above which a log counts as irregular and is resampled.

@@ -393,11 +393,11 @@ PRESLIDING_MAX_FRACTION = 0.01
 
 
 def presliding_range(s: Signals) -> tuple[float, float]:
-    """Break displacements tried for pre-sliding blocks: from two resolution steps of the measured
-    position that drives them to the elastic range's upper bound.  Not bounded by the velocity
+    """Break displacements tried for pre-sliding blocks: from two steps of the measured position
+    that drives them (its contact resolution, the encoder step) to the elastic range's upper bound.  Not bounded by the velocity
     filter's blur: the blocks follow the raw position, and what a narrow block shares with a
     switch of friction at the reversal is taken out by testing against that switch."""
-    return 2.0 * s.resolution, PRESLIDING_MAX_FRACTION * float(np.ptp(s.q))
+    return 2.0 * s.contact_resolution, PRESLIDING_MAX_FRACTION * float(np.ptp(s.q))
 
 
 def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
@@ -412,13 +412,13 @@ def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
         for n in range(1, len(grid) + 1):
             t = Term("presliding_hysteresis", ("w_switch",) + tuple(f"w_block{i + 1}" for i in range(n)),
                      lambda s, h: np.column_stack([_play(s, d) for d in h]),
-                     (float(s.resolution),) + grid[:n], ("Delta_switch",) + tuple(f"Delta_block{i + 1}" for i in range(n)))
+                     (float(s.contact_resolution),) + grid[:n], ("Delta_switch",) + tuple(f"Delta_block{i + 1}" for i in range(n)))
             out.append(_add(model, t, "presliding_hysteresis"))
     return out
 
 
 def reversal_switch(term: Term) -> Term:
-    """The pre-sliding term's stiffest element alone: a block of one position resolution step,
+    """The pre-sliding term's stiffest element alone: a block one encoder step wide,
     i.e. friction that switches where the measured position reverses.  Every contact does that
     (a Karnopp or LuGre contact as much as a Maxwell-slip one), and where the velocity filter
     blurs reversals it fits better than ``sign(qd)`` of the filtered velocity; that is no
@@ -852,7 +852,7 @@ def detection_limits(s: Signals, rotary: bool = False) -> dict[str, dict[str, fl
         "position_resolution": {"value": float(s.resolution), "quantity": "position",
                                 "how": "the encoder step (1st percentile of the sample-to-sample changes) or the position noise, whichever is larger"},
         "presliding_hysteresis": {"smallest_break_displacement": float(lo), "largest_break_displacement": float(hi), "quantity": "position",
-                                  "looked_for": bool(hi > lo),
+                                  "switch_width": float(s.contact_resolution), "looked_for": bool(hi > lo),
                                   "below": "a contact that narrow switches within the resolution: the switch of friction at the reversal"},
         "input_delay": {"smallest_delay": float(DELAY_STEPS[0] * s.dt), "largest_delay": float(DELAY_STEPS[-1] * s.dt), "quantity": "time",
                         "below": "timing within a sample is the alignment (reported under alignment), not an effect"},

@@ -24,7 +24,7 @@ from scipy import ndimage, signal
 
 from .._validate import count, finite
 from ..errors import IdentificationError, InvalidInputError
-from .data import AxisData, quantisation_step
+from .data import AxisData, encoder_step, quantisation_step
 
 Array = NDArray[np.float64]
 
@@ -98,6 +98,12 @@ class Preprocessing:
 REST_FRACTION = 0.01
 
 
+def position_noise(raw: Array, filtered: Array) -> float:
+    """Noise of the measured position: the robust spread of raw minus filtered position."""
+    hf = raw - filtered
+    return float(1.4826 * np.median(np.abs(hf - np.median(hf))))
+
+
 def position_resolution(raw: Array, filtered: Array, logged_step: float | None = None) -> float:
     """Smallest position change the data resolve: the encoder step of a quantised position (the
     smallest non-zero sample-to-sample change; ``logged_step``, that step measured before a
@@ -109,9 +115,19 @@ def position_resolution(raw: Array, filtered: Array, logged_step: float | None =
         step = float(logged_step)
     else:
         step = quantisation_step(raw)
-    hf = raw - filtered
-    noise = float(1.4826 * np.median(np.abs(hf - np.median(hf))))
-    return max(step, noise, 1e-12 * span)
+    return max(step, position_noise(raw, filtered), 1e-12 * span)
+
+
+def contact_resolution(raw: Array, filtered: Array, resolution: float, lattice: float | None) -> float:
+    """Narrowest elastic range a contact driven by the measured position can show: the encoder
+    step ``lattice`` when the log rests on its lattice (:func:`~gmsfric.loop.data.encoder_step`,
+    measured before any resampling), not below the position noise; ``resolution`` otherwise.  Pre-sliding blocks follow the raw position, so a block a few steps
+    wide is seen wherever the encoder resolves it, even on a fast log whose 1st percentile of
+    changes (``resolution``, which sets what counts as standstill) is many steps."""
+    span = float(np.ptp(raw)) or 1.0
+    if lattice is None or not (np.isfinite(lattice) and 0.0 < lattice <= span):
+        return resolution
+    return min(resolution, max(float(lattice), position_noise(raw, filtered), 1e-12 * span))
 
 
 @functools.lru_cache(maxsize=None)
@@ -182,6 +198,8 @@ class Signals:
         Rows where the axis moves (``|qd| >= rest_speed``); the others are standstill.
     resolution : float
         Position resolution (see :func:`position_resolution`).
+    contact_resolution : float
+        Narrowest pre-sliding block the position shows (see :func:`contact_resolution`).
     """
 
     def __init__(self, data: AxisData, pre: Preprocessing = Preprocessing(), *, q_range: tuple[float, float] | None = None, t0: float | None = None,
@@ -216,6 +234,9 @@ class Signals:
         self.rows = {"t": self.decimate(self.t), "q": self.decimate(q), "qd": self.decimate(qd), "qdd": self.decimate(qdd)}
         #: Position resolution (m or rad): the encoder step, or the noise of the raw position.
         self.resolution = position_resolution(data.position, q, data.timing.get("position_step_as_logged"))
+        #: Narrowest pre-sliding block the position shows (m or rad): the encoder step.
+        lattice = data.timing.get("encoder_step_as_logged") if data.timing.get("resampled") else encoder_step(data.position)
+        self.contact_resolution = contact_resolution(data.position, q, self.resolution, lattice)
         #: Speed below which a row is at rest (the estimation run's threshold for a validation run).
         self.rest_speed = float(rest_speed) if rest_speed is not None else REST_FRACTION * self.v_scale
         # A sample is stuck when the measured position does not change by more than its
