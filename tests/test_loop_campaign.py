@@ -169,6 +169,28 @@ def test_presliding_narrower_than_the_filter_blur_is_found(monkeypatch):
     assert run_loop(*runs, only).effects == []
 
 
+def test_presliding_blocks_are_bounded_by_the_encoder_step_not_the_percentile(monkeypatch):
+    """A Maxwell-slip contact of blocks 1-10 encoder steps wide (86-866 nm, 89 nm steps) behind a
+    spring, logged at 2 kHz on fast moves: the 1st percentile of the position's changes is four
+    steps, and a grid from two of those (715 nm) leaves only the widest block, which the spring's
+    model absorbs (campaign seed 109).  Bounded by the step the log rests on, the contact is found
+    beside the spring, its switch one step wide and a block below the percentile's grid."""
+    from gmsfric.loop import LoopConfig, Signals, idim, run_loop
+
+    runs = _campaign_runs(109, "pair-195-compliance+presliding_hysteresis")
+    s = Signals(runs[0])
+    assert s.contact_resolution == pytest.approx(8.94e-8, rel=0.01) and s.resolution > 3.5 * s.contact_resolution
+    cfg = LoopConfig(progress=False, effects=("compliance", "presliding_hysteresis"))
+    res = run_loop(*runs, cfg)
+    assert sorted(res.effects) == ["compliance", "presliding_hysteresis"]
+    step = next(st for st in res.steps if st.effect == "presliding_hysteresis" and st.accepted)
+    deltas = {k: v["value"] for k, v in step.parameters.items() if k.startswith("Delta")}
+    assert deltas["Delta_switch"] == pytest.approx(s.contact_resolution)
+    assert min(v for k, v in deltas.items() if k != "Delta_switch") < 2 * s.resolution
+    monkeypatch.setattr(idim, "contact_resolution", lambda raw, filtered, resolution, lattice: resolution)
+    assert run_loop(*runs, cfg).effects == ["compliance"]
+
+
 def test_presliding_blocks_that_cancel_each_other_are_refused(monkeypatch):
     """A clean Karnopp rig at 500 Hz (campaign seed 31, no pre-sliding): three blocks, one of them
     with a negative break force within two of its standard errors of zero, fitted the reversals
