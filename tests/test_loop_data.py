@@ -246,6 +246,10 @@ def test_a_resampled_log_keeps_the_lattice_it_rested_on():
     s = Signals(d)
     assert s.contact_resolution == pytest.approx(max(step, position_noise(d.position, s.q)), rel=1e-9)
     assert s.contact_resolution < 0.5 * s.resolution
+    # a logged step that is no length within the travel (hand-made timing) is not trusted
+    for bad in (float("nan"), -1.0, 1e300, "50 nm"):
+        odd = AxisData(d.t, d.position, d.force, timing={**d.timing, "encoder_step_as_logged": bad})
+        assert Signals(odd).contact_resolution == Signals(odd).resolution
 
 
 def test_uniform_log_is_left_alone(tmp_path):

@@ -394,9 +394,10 @@ PRESLIDING_MAX_FRACTION = 0.01
 
 def presliding_range(s: Signals) -> tuple[float, float]:
     """Break displacements tried for pre-sliding blocks: from two steps of the measured position
-    that drives them (its contact resolution, the encoder step) to the elastic range's upper bound.  Not bounded by the velocity
-    filter's blur: the blocks follow the raw position, and what a narrow block shares with a
-    switch of friction at the reversal is taken out by testing against that switch."""
+    that drives them (its contact resolution, the encoder step) to the elastic range's upper
+    bound.  Not bounded by the velocity filter's blur: the blocks follow the raw position, and
+    what a narrow block shares with a switch of friction at the reversal is taken out by testing
+    against that switch."""
     return 2.0 * s.contact_resolution, PRESLIDING_MAX_FRACTION * float(np.ptp(s.q))
 
 

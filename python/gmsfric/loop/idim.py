@@ -121,11 +121,14 @@ def position_resolution(raw: Array, filtered: Array, logged_step: float | None =
 def contact_resolution(raw: Array, filtered: Array, resolution: float, lattice: float | None) -> float:
     """Narrowest elastic range a contact driven by the measured position can show: the encoder
     step ``lattice`` when the log rests on its lattice (:func:`~gmsfric.loop.data.encoder_step`,
-    measured before any resampling), not below the position noise; ``resolution`` otherwise.  Pre-sliding blocks follow the raw position, so a block a few steps
-    wide is seen wherever the encoder resolves it, even on a fast log whose 1st percentile of
-    changes (``resolution``, which sets what counts as standstill) is many steps."""
+    measured before any resampling), not below the position noise; ``resolution`` otherwise.
+
+    Pre-sliding blocks follow the raw position, so a block a few steps wide is seen wherever the
+    encoder resolves it, even on a fast log whose 1st percentile of changes (``resolution``,
+    which sets what counts as standstill) is many steps."""
     span = float(np.ptp(raw)) or 1.0
-    if lattice is None or not (np.isfinite(lattice) and 0.0 < lattice <= span):
+    # a lattice is only a step if it is a positive length within the travel (timing can be hand-made)
+    if not (isinstance(lattice, (int, float)) and np.isfinite(lattice) and 0.0 < lattice <= span):
         return resolution
     return min(resolution, max(float(lattice), position_noise(raw, filtered), 1e-12 * span))
 
