@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
-from typing import Callable, Collection, Sequence
+from typing import Callable, Collection, Sequence, TypeGuard
 
 import numpy as np
 from numpy.typing import NDArray
@@ -104,17 +104,19 @@ def position_noise(raw: Array, filtered: Array) -> float:
     return float(1.4826 * np.median(np.abs(hf - np.median(hf))))
 
 
+def _a_length_within(step: object, span: float) -> TypeGuard[float]:
+    """Whether a step taken from ``timing`` (which can be hand-made) is a positive length within
+    the travel ``span``."""
+    return isinstance(step, (int, float)) and bool(np.isfinite(step)) and 0.0 < step <= span
+
+
 def position_resolution(raw: Array, filtered: Array, logged_step: float | None = None) -> float:
     """Smallest position change the data resolve: the encoder step of a quantised position (the
     smallest non-zero sample-to-sample change; ``logged_step``, that step measured before a
     resampling, when the run was resampled) or, when the position is noisy rather than quantised,
     the noise level (robust spread of raw minus filtered position)."""
     span = float(np.ptp(raw)) or 1.0
-    # a logged step is only a step if it is a positive length within the travel
-    if isinstance(logged_step, (int, float)) and np.isfinite(logged_step) and 0.0 < logged_step <= span:
-        step = float(logged_step)
-    else:
-        step = quantisation_step(raw)
+    step = float(logged_step) if _a_length_within(logged_step, span) else quantisation_step(raw)
     return max(step, position_noise(raw, filtered), 1e-12 * span)
 
 
@@ -127,8 +129,7 @@ def contact_resolution(raw: Array, filtered: Array, resolution: float, lattice: 
     encoder resolves it, even on a fast log whose 1st percentile of changes (``resolution``,
     which sets what counts as standstill) is many steps."""
     span = float(np.ptp(raw)) or 1.0
-    # a lattice is only a step if it is a positive length within the travel (timing can be hand-made)
-    if not (isinstance(lattice, (int, float)) and np.isfinite(lattice) and 0.0 < lattice <= span):
+    if not _a_length_within(lattice, span):
         return resolution
     return min(resolution, max(float(lattice), position_noise(raw, filtered), 1e-12 * span))
 
