@@ -23,6 +23,8 @@ from gmsfric.loop.select import _cv_sse, baseline_physics, make_split, paired_ch
         (dict(alpha=0.0), "alpha"),
         (dict(alpha=float("inf")), "alpha"),
         (dict(min_gain=1.0), "min_gain"),
+        (dict(min_estimation_gain=-0.01), "min_estimation_gain"),
+        (dict(min_estimation_gain=float("nan")), "min_estimation_gain"),
         (dict(t_threshold=-1.0), "t_threshold"),
         (dict(max_parameter_ratio=1.0), "max_parameter_ratio"),
         (dict(rest_fraction=0.7), "rest_fraction"),
@@ -42,6 +44,17 @@ from gmsfric.loop.select import _cv_sse, baseline_physics, make_split, paired_ch
 def test_bad_settings_are_refused_naming_the_setting(kwargs, name):
     with pytest.raises(InvalidInputError, match=f"`{name}`"):
         LoopConfig(**kwargs)
+
+
+def test_the_estimation_gain_is_measured_like_the_held_out_one():
+    """``min_estimation_gain`` is a decrease of the error (the root of the SSE), as ``min_gain``
+    is: a 2.5 % lower error is a 4.94 % lower SSE."""
+    cfg = LoopConfig(min_estimation_gain=0.025)
+    sse_gain = 1.0 - 0.975**2
+    assert cfg.gains_on_estimation(sse_gain + 1e-9) and not cfg.gains_on_estimation(sse_gain - 1e-6)
+    # no threshold still asks for a gain
+    free = LoopConfig(min_estimation_gain=0.0)
+    assert free.gains_on_estimation(1e-9) and not free.gains_on_estimation(0.0) and not free.gains_on_estimation(-0.2)
 
 
 def test_levels_spend_alpha_over_rounds_and_effects():

@@ -29,10 +29,10 @@ The loop runs in named stages (:func:`run_loop`):
      ``alpha / 2**r`` of the family-wise level, split equally (Bonferroni) over the ``K``
      effects it tests, so an effect enters only with ``p <= alpha / (2**r K)``; the sum over
      rounds stays below ``alpha``.  ``K`` counts the effects that pass the checks made on the
-     estimation run alone (a physical fit, a cross-validated gain, a lower BIC, a plausible
-     baseline; :func:`_screened`): the others are refused whatever the held-out run shows, and
-     since the two runs' noise is independent, screening on the one does not bias the test on
-     the other;
+     estimation run alone (a physical fit, a cross-validated gain of at least
+     ``min_estimation_gain``, a lower BIC, a plausible baseline; :func:`_screened`): the others
+     are refused whatever the held-out run shows, and since the two runs' noise is independent,
+     screening on the one does not bias the test on the other;
    * an effect that acts on the whole motion (a delay, a resonance) must pass the same test on the
      held-out rows clear of reversals and stops: what gains only there is the switch of friction
      seen through the velocity filter;
@@ -183,6 +183,11 @@ class LoopConfig:
         Floor on the held-out t statistic, on top of the corrected level (>= 0).
     min_gain : float
         Smallest relative decrease of the held-out error that counts (0.01 = 1 %; in [0, 1)).
+    min_estimation_gain : float
+        Smallest relative decrease of the cross-validated error on the estimation rows (the
+        root of its SSE, the measure of ``min_gain``) that counts, in [0, 1): an effect that a
+        held-out run finds material but that explains little of the run it was fitted on gains
+        there by what it happens to resemble in that run.
     max_parameter_ratio : float
         An effect may lower the baseline's effective Coulomb level by at most this factor (> 1),
         unless it makes an unphysical baseline's mass and viscous coefficient physical; the mass
@@ -216,6 +221,7 @@ class LoopConfig:
     alpha: float = 0.05
     t_threshold: float = 3.0
     min_gain: float = 0.05
+    min_estimation_gain: float = 0.025
     max_parameter_ratio: float = 2.0
     rest_fraction: float = 0.01
     creep_fraction: float = 0.002
@@ -237,9 +243,10 @@ class LoopConfig:
             raise InvalidInputError(f"`alpha` must be in (0, 0.5], got {a}")
         if finite("t_threshold", self.t_threshold) < 0:
             raise InvalidInputError(f"`t_threshold` must be >= 0, got {self.t_threshold}")
-        g = finite("min_gain", self.min_gain)
-        if not 0.0 <= g < 1.0:
-            raise InvalidInputError(f"`min_gain` must be in [0, 1), got {g}")
+        for name in ("min_gain", "min_estimation_gain"):
+            g = finite(name, getattr(self, name))
+            if not 0.0 <= g < 1.0:
+                raise InvalidInputError(f"`{name}` must be in [0, 1), got {g}")
         if finite("max_parameter_ratio", self.max_parameter_ratio) <= 1.0:
             raise InvalidInputError(f"`max_parameter_ratio` must be > 1, got {self.max_parameter_ratio}")
         rf = finite("rest_fraction", self.rest_fraction)
@@ -259,6 +266,11 @@ class LoopConfig:
             unknown = [e for e in self.effects if e not in CATALOGUE]
             if unknown:
                 raise InvalidInputError(f"`effects` has unknown effect(s) {unknown}; catalogue: {', '.join(CATALOGUE)}")
+
+    def gains_on_estimation(self, gain_cv: float) -> bool:
+        """Whether a cross-validated SSE gain ``gain_cv`` on the estimation rows lowers their
+        error by at least ``min_estimation_gain``."""
+        return gain_cv > 0 and 1.0 - float(np.sqrt(max(1.0 - gain_cv, 0.0))) >= self.min_estimation_gain
 
     def level(self, rnd: int, n_tests: int) -> float:
         """Per-test level of round ``rnd`` (1-based) with ``n_tests`` candidates."""
@@ -1142,10 +1154,10 @@ def _delta_bic(m: LinearModel, null: LinearModel, split: Split) -> float:
 
 def _screened(st: _State, cfg: LoopConfig, m: LinearModel, null: LinearModel, gain_cv: float) -> bool:
     """Whether a candidate ``m`` (tested against fitted ``null``) passes every check made on the
-    estimation run alone: a cross-validated gain, a lower BIC and a plausible baseline.  Only
+    estimation run alone: a cross-validated gain (``min_estimation_gain``), a lower BIC and a plausible baseline.  Only
     those candidates can enter, so only they share a round's level."""
     _fit(m, st.split)
-    return gain_cv > 0 and _delta_bic(m, null, st.split) < 0 and _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)[1] is None
+    return cfg.gains_on_estimation(gain_cv) and _delta_bic(m, null, st.split) < 0 and _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)[1] is None
 
 
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
@@ -1178,6 +1190,9 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     reasons = []
     if gain_cv <= 0:
         reasons.append("no cross-validated gain on estimation data")
+    elif not cfg.gains_on_estimation(gain_cv):
+        reasons.append(f"cross-validated error gain on estimation data {100 * (1 - np.sqrt(1 - gain_cv)):.2f} % "
+                       f"< {100 * cfg.min_estimation_gain:.2f} %")
     if h.gain < cfg.min_gain:
         reasons.append(f"held-out error gain {100 * h.gain:.2f} % < {100 * cfg.min_gain:.2f} %")
     if h.p > level or h.t < cfg.t_threshold:
@@ -1551,7 +1566,7 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
         "final_moving_rows_error_pct": {"estimation": round(fe, 4), "validation": round(fv_, 4)},
     }
     res.selection = {
-        "rule": "forward selection; an effect enters when its held-out chunk test (Newey-West t) has p <= alpha / (2**round x effects tested, counting those that pass the estimation-only checks: cross-validated gain, BIC, plausible baseline), "
+        "rule": "forward selection; an effect enters when its held-out chunk test (Newey-West t) has p <= alpha / (2**round x effects tested, counting those that pass the estimation-only checks: cross-validated error gain >= min_estimation_gain, BIC, plausible baseline), "
                 "its held-out gain >= min_gain, BIC decreases and the baseline parameters stay plausible (a delay or a resonance must also pass "
                 "on the held-out rows clear of reversals and stops); the best held-out gain enters; "
                 "then joint refit of every accepted effect's grid parameters and backward elimination (stay with p <= alpha); "
@@ -1559,7 +1574,8 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
                 "tried that pass the estimation-only checks), held-out gain >= min_gain) and the pair passes the BIC and plausibility tests; when no pair passes either, an accepted "
                 "effect is replaced by another catalogue effect that passes the same tests in its place (p <= alpha / (2**(round + 2) x "
                 "exchanges tried that pass them)) and beats the current model on held-out data and in cross-validated error",
-        "alpha": cfg.alpha, "t_threshold": cfg.t_threshold, "min_gain": cfg.min_gain, "max_parameter_ratio": cfg.max_parameter_ratio,
+        "alpha": cfg.alpha, "t_threshold": cfg.t_threshold, "min_gain": cfg.min_gain, "min_estimation_gain": cfg.min_estimation_gain,
+        "max_parameter_ratio": cfg.max_parameter_ratio,
         "chunk_rows": st.chunk,
     }
     timing = dict(getattr(S.data, "timing", {}) or {})
