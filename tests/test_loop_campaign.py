@@ -961,6 +961,7 @@ def test_an_effect_must_explain_the_run_it_was_fitted_on_too():
     was fitted on by ``min_estimation_gain`` too, so nothing is added; asking only for a
     cross-validated gain, the resonance is named."""
     from gmsfric.loop import LoopConfig, run_loop
+    from gmsfric.loop.select import error_gain
 
     runs = _campaign_runs(111, "clean-263-clean")
     cfg = LoopConfig(progress=False)
@@ -969,6 +970,6 @@ def test_an_effect_must_explain_the_run_it_was_fitted_on_too():
     tried = next(s for s in res.steps if s.effect == "compliance" and s.round == 1)
     ev = tried.evidence
     assert "cross-validated error gain on estimation data" in tried.reason
-    assert 0 < 1 - np.sqrt(1 - ev["cv_gain"]) < cfg.min_estimation_gain
+    assert 0 < error_gain(ev["cv_gain"]) < cfg.min_estimation_gain
     assert ev["validation_gain"] >= 2 * cfg.min_gain and ev["t_heldout"] >= cfg.t_threshold
     assert run_loop(*runs, LoopConfig(progress=False, min_estimation_gain=0.0)).effects == ["compliance"]

@@ -270,11 +270,17 @@ class LoopConfig:
     def gains_on_estimation(self, gain_cv: float) -> bool:
         """Whether a cross-validated SSE gain ``gain_cv`` on the estimation rows lowers their
         error by at least ``min_estimation_gain``."""
-        return gain_cv > 0 and 1.0 - float(np.sqrt(max(1.0 - gain_cv, 0.0))) >= self.min_estimation_gain
+        return gain_cv > 0 and error_gain(gain_cv) >= self.min_estimation_gain
 
     def level(self, rnd: int, n_tests: int) -> float:
         """Per-test level of round ``rnd`` (1-based) with ``n_tests`` candidates."""
         return self.alpha * 0.5**rnd / max(n_tests, 1)
+
+
+def error_gain(sse_gain: float) -> float:
+    """The relative decrease of an error (the root of an SSE) that a relative decrease
+    ``sse_gain`` of the SSE makes."""
+    return 1.0 - float(np.sqrt(max(1.0 - sse_gain, 0.0)))
 
 
 @dataclass
@@ -1154,8 +1160,8 @@ def _delta_bic(m: LinearModel, null: LinearModel, split: Split) -> float:
 
 def _screened(st: _State, cfg: LoopConfig, m: LinearModel, null: LinearModel, gain_cv: float) -> bool:
     """Whether a candidate ``m`` (tested against fitted ``null``) passes every check made on the
-    estimation run alone: a cross-validated gain (``min_estimation_gain``), a lower BIC and a plausible baseline.  Only
-    those candidates can enter, so only they share a round's level."""
+    estimation run alone: a cross-validated gain (``min_estimation_gain``), a lower BIC and a
+    plausible baseline.  Only those candidates can enter, so only they share a round's level."""
     _fit(m, st.split)
     return cfg.gains_on_estimation(gain_cv) and _delta_bic(m, null, st.split) < 0 and _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)[1] is None
 
@@ -1191,7 +1197,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     if gain_cv <= 0:
         reasons.append("no cross-validated gain on estimation data")
     elif not cfg.gains_on_estimation(gain_cv):
-        reasons.append(f"cross-validated error gain on estimation data {100 * (1 - np.sqrt(1 - gain_cv)):.2f} % "
+        reasons.append(f"cross-validated error gain on estimation data {100 * error_gain(gain_cv):.2f} % "
                        f"< {100 * cfg.min_estimation_gain:.2f} %")
     if h.gain < cfg.min_gain:
         reasons.append(f"held-out error gain {100 * h.gain:.2f} % < {100 * cfg.min_gain:.2f} %")
