@@ -1194,7 +1194,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     if eff.null is not None:
         ev["tested_against"] = f"the current model plus {', '.join(eff.null(next(t for t in m.terms if t.name == eff.name)).param_names)} alone"
     reasons = []
-    if gain_cv <= 0:
+    if not gain_cv > 0:  # NaN too (both models' cross-validated errors zero): no gain
         reasons.append("no cross-validated gain on estimation data")
     elif not cfg.gains_on_estimation(gain_cv):
         reasons.append(f"cross-validated error gain on estimation data {100 * error_gain(gain_cv):.2f} % "
