@@ -464,6 +464,15 @@ class HeldOut:
     chunks: int
     error_before: float
     error_after: float
+    #: Whether only the rows within the estimation travel were compared (:func:`within_travel`).
+    within_travel: bool = False
+    #: The gain on every tested row, when ``gain`` is that within the estimation travel.
+    gain_all_rows: float | None = None
+
+    @property
+    def ranking_gain(self) -> float:
+        """The gain candidates are ranked by: on the same held-out rows for all of them."""
+        return self.gain if self.gain_all_rows is None else self.gain_all_rows
 
 
 def paired_chunk_test(r0: Array, r1: Array, chunk: int, acting: Array | None = None) -> tuple[float, float, int]:
@@ -538,8 +547,21 @@ def informative_chunks(disagreement: Array, fraction: float = INFORMATIVE_FRACTI
 def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, rows: Array | None = None,
             effect: str | None = None) -> HeldOut:
     """Compare two fitted models on the moving held-out rows (or on ``rows`` of them); ``effect``:
-    the effect ``after`` adds (its chunks tested where it acts when it acts over time)."""
+    the effect ``after`` adds (its chunks tested where it acts when it acts over time).
+
+    Models with a position basis are compared on the rows within the estimation travel
+    (:func:`within_travel`) when the held-out run goes beyond it.  Candidates are ranked by
+    their gain on every row (:attr:`HeldOut.ranking_gain`), the same rows for all of them."""
     rows = split.val_test if rows is None else rows
+    out = _heldout_on(split, before, after, chunk, rows, effect)
+    if _by_travel(before, after):
+        inside = within_travel(split, rows, chunk)
+        if inside.sum() < rows.sum():
+            out = replace(_heldout_on(split, before, after, chunk, inside, effect), within_travel=True, gain_all_rows=out.gain)
+    return out
+
+
+def _heldout_on(split: Split, before: LinearModel, after: LinearModel, chunk: int, rows: Array, effect: str | None) -> HeldOut:
     y = split.val.y[rows]
     r0 = y - before.predict(split.val)[rows]
     r1 = y - after.predict(split.val)[rows]
@@ -547,6 +569,22 @@ def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, r
     t, p, m = paired_chunk_test(r0, r1, chunk, acting)
     e0, e1 = relative_error(y, y - r0), relative_error(y, y - r1)
     return HeldOut(t, p, 1.0 - e1 / e0 if e0 > 0 else 0.0, m, e0, e1)
+
+
+def within_travel(split: Split, rows: Array, chunk: int) -> Array:
+    """``rows`` of the held-out run that lie within the travel of the moving estimation rows, when
+    at least a ``chunk`` of them lie beyond it and :data:`MIN_TESTED_CHUNKS` chunks within it
+    (else ``rows``).
+
+    A position basis is known only where the axis has been: beyond the estimation travel it
+    extrapolates (a polynomial grows without bound), and a held-out run that goes further would
+    test that guess instead of whether the force depends on the position.  Models with a
+    position basis are compared within the travel, as cross-validation scores them
+    (:func:`_cv_sse`); a few rows beyond it cannot move the test."""
+    q = split.est.rows["q"][split.est_fit]
+    qv = split.val.rows["q"]
+    inside = rows & (qv >= q.min()) & (qv <= q.max())
+    return inside if rows.sum() - inside.sum() >= chunk and inside.sum() >= MIN_TESTED_CHUNKS * chunk else rows
 
 
 @dataclass(frozen=True)
@@ -1111,7 +1149,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                 step.evidence["level_shared_by"] = screened
                 st.steps.append(step)
                 if not step.reason:
-                    passing.append((h.gain, step, m))
+                    passing.append((h.ranking_gain, step, m))
             if not passing:
                 if len(st.model.effects) + 2 <= cfg.max_effects and _pair_step(st, cfg, rnd, cands, far, fnd, prog):
                     rnd += 1  # the pair spent the next round's share of the level
@@ -1190,7 +1228,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
               moving_rows_error_pct={"estimation": round(split.errors_moving(m)[0], 4), "validation": round(h.error_after, 4)},
               t_heldout=round(h.t, 2), p_heldout=float(f"{h.p:.3g}"),
               level=float(f"{level:.3g}"), delta_bic=round(float(dbic), 1), baseline_parameters=change)
-    ev["judged_on"] = f"{split.label} rows"
+    ev["judged_on"] = f"{split.label} rows" + (" within the estimation travel" if h.within_travel else "")
     if eff.null is not None:
         ev["tested_against"] = f"the current model plus {', '.join(eff.null(next(t for t in m.terms if t.name == eff.name)).param_names)} alone"
     reasons = []
@@ -1428,8 +1466,10 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
                fnd: dict[str, Finding], prog: Progress) -> bool:
     """When no single effect passes, two may enter together: effects that are confounded (a
     position-dependent friction and force, a drift and a Stribeck curve) can each fail alone, the
-    one absorbing part of the other's force the wrong way.  A pair of effects that each gain on
-    the estimation rows is fitted jointly, the grid parameters of both chosen again together
+    one absorbing part of the other's force the wrong way, even raising the cross-validated error
+    of the estimation run alone (a friction asymmetry beside a position-dependent force).  Any two
+    candidates are fitted jointly, and a pair whose joint fit lowers that error by
+    ``min_estimation_gain`` is tried: the grid parameters of both chosen again together
     (each was chosen alone, given a model without the other); it enters when *each* of the two passes the held-out
     test given the other, with the minimum gain (so that a real effect cannot carry a false one in),
     at the level of the next round split over the pairs that pass the estimation-only checks
@@ -1437,11 +1477,11 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     too little on held-out data counts too), and the pair together passes the BIC and the
     plausibility of the baseline.  Returns whether a pair entered."""
     dt = st.split.est.dt
-    gaining = [(eff, m) for g, eff, m in cands if g > 0]
-    pairs = [(gaining[i], gaining[j]) for i in range(len(gaining)) for j in range(i + 1, len(gaining))]
+    pool = [(eff, m) for _, eff, m in cands]
+    pairs = [(pool[i], pool[j]) for i in range(len(pool)) for j in range(i + 1, len(pool))]
     if not pairs:
         return False
-    creep = _creeping(st) if any(eff.creeping for eff, _ in gaining) else st
+    creep = _creeping(st) if any(eff.creeping for eff, _ in pool) else st
     fitted: list[tuple[Effect, Effect, _State, LinearModel, float, dict[str, Any]]] = []
     shared = 0  # the pairs that could enter, whatever the held-out tests show
     for (ea, ma), (eb, mb) in pairs:
@@ -1452,6 +1492,9 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             both = _fit(_combine(ma, mb, eb.name, dt), split)
             if any(e.check(both, split.est) is not None for e in (ea, eb)):
                 continue
+            by_travel = _by_travel(both, ps.model)
+            if not cfg.gains_on_estimation(1.0 - _cv(both, split, cfg, by_travel) / _cv(ps.model, split, cfg, by_travel)):
+                continue  # it cannot enter: no share of the level
             if heldout(split, ps.model, both, st.chunk).gain < cfg.min_gain:
                 shared += 1  # left out by a held-out test, so it keeps its share of the level
                 continue
@@ -1472,7 +1515,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     for ea, eb, ps, both, dbic, change in fitted:
         split = ps.split
         h = heldout(split, ps.model, both, st.chunk)
-        if h.gain < cfg.min_gain or (best is not None and h.gain <= best[0]):
+        if h.gain < cfg.min_gain or (best is not None and h.ranking_gain <= best[0]):
             continue
         marginals: dict[str, dict[str, Any]] = {}
         passed = True
@@ -1510,9 +1553,9 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
                       moving_rows_error_pct={"estimation": round(split.errors_moving(both)[0], 4), "validation": round(h.error_after, 4)})
             mg = marginals[eff.name]
             reason = (f"entered together with {other.name} (neither passes alone): held-out error {h.error_before:.3f} -> {h.error_after:.3f} % "
-                      f"on moving rows; given {other.name} t = {mg['t_heldout']:.1f}, p = {mg['p_heldout']:.2g} <= {level:.2g}; BIC {dbic:+.1f}")
+                      f"on moving rows{' within the estimation travel' if h.within_travel else ''}; given {other.name} t = {mg['t_heldout']:.1f}, p = {mg['p_heldout']:.2g} <= {level:.2g}; BIC {dbic:+.1f}")
             steps.append(Step(rnd, eff.name, True, reason, ev, e_est, e_val, both.params(), both))
-        best = (h.gain, steps, both)
+        best = (h.ranking_gain, steps, both)
     if best is None:
         return False
     _, steps, both = best
