@@ -454,6 +454,27 @@ def test_a_pair_is_screened_on_its_joint_fit_not_on_its_members_alone():
     assert e1 < 0.1 * e0
 
 
+def test_a_position_basis_is_tested_within_the_estimation_travel(monkeypatch):
+    """A Stribeck curve beside a position-dependent force (the campaign's seed 117): the held-out
+    run travels four times as far as the estimation run, where the fitted polynomial in the
+    position is a guess.  Within the estimation travel the pair removes most of the held-out
+    error and enters; tested on every held-out row, each member loses given the other and
+    nothing is named."""
+    from gmsfric.loop import LoopConfig, run_loop, select
+
+    runs = _campaign_runs(117, "pair-180-stribeck+position_dependent_force")
+    cfg = LoopConfig(progress=False, effects=("stribeck", "position_dependent_force", "friction_drift"))
+    res = run_loop(*runs, cfg)
+    assert sorted(res.effects) == ["position_dependent_force", "stribeck"]
+    entered = [s for s in res.steps if s.accepted]
+    assert entered and all("within the estimation travel" in s.reason for s in entered)
+    q_est = res.split.est.rows["q"][res.split.est_fit]
+    q_val = res.split.val.rows["q"][res.split.val_test]
+    assert np.mean(q_val > q_est.max()) > 0.1
+    monkeypatch.setattr(select, "within_travel", lambda split, rows, chunk: rows)
+    assert run_loop(*runs, cfg).effects == []
+
+
 def test_accepted_effects_are_chosen_again_with_each_candidate(monkeypatch):
     """A transmission resonance and a friction drift (the campaign's seed 37): the resonance enters
     first, its frequency fitted 2.5 % high while the drift is missing, and that error hides the

@@ -44,14 +44,18 @@ The loop runs in named stages (:func:`run_loop`):
      baseline's mass and viscous coefficient physical -- an effect may not buy its gain by
      explaining the friction away.
 
-   Among the effects that pass, the one with the largest held-out gain enters (effects compete on
-   the same held-out rows).  Then every accepted effect's grid parameters and the alignment are
+   Models with a position basis are tested on the held-out rows within the estimation travel
+   when the held-out run goes beyond it (a basis is known only where the axis has been), and
+   ranked by their gain on every row.  Among the effects that pass, the one with the largest
+   held-out gain enters (effects compete on the same held-out rows).  Then every accepted effect's grid parameters and the alignment are
    chosen again given the others (joint refit), and every earlier effect is tested again on the
    held-out rows given all the others (backward elimination, kept only with ``p <= alpha`` and
    the minimum gain): an effect that another one explains better leaves the model.
 
    When no single effect passes, two confounded effects may enter together, their grid
-   parameters chosen again together: each must pass the held-out test given the other (level of
+   parameters chosen again together.  Any two candidates are tried whose joint fit lowers the
+   estimation run's cross-validated error by ``min_estimation_gain`` (one may fit worse alone,
+   absorbing the other's force the wrong way); each must pass the held-out test given the other (level of
    the next round, split over the pairs tried), so a real effect cannot carry a false one in
    (:func:`_pair_step`).  When no pair passes either, each accepted effect is tried replaced by
    each catalogue effect not in the model, tested as an entering effect is in its place and
@@ -1619,7 +1623,9 @@ def stage_report(st: _State, cfg: LoopConfig, names: list[str]) -> LoopResult:
                 "its held-out gain >= min_gain, BIC decreases and the baseline parameters stay plausible (a delay or a resonance must also pass "
                 "on the held-out rows clear of reversals and stops); the best held-out gain enters; "
                 "then joint refit of every accepted effect's grid parameters and backward elimination (stay with p <= alpha); "
-                "when no single effect passes, a pair of effects enters when each passes given the other (p <= alpha / (2**(round + 1) x pairs "
+                "models with a position basis are tested on the held-out rows within the estimation travel when the held-out run goes beyond it; "
+                "when no single effect passes, a pair of effects whose joint fit has a cross-validated error gain >= min_estimation_gain "
+                "enters when each passes given the other (p <= alpha / (2**(round + 1) x pairs "
                 "tried that pass the estimation-only checks), held-out gain >= min_gain) and the pair passes the BIC and plausibility tests; when no pair passes either, an accepted "
                 "effect is replaced by another catalogue effect that passes the same tests in its place (p <= alpha / (2**(round + 2) x "
                 "exchanges tried that pass them)) and beats the current model on held-out data and in cross-validated error",
