@@ -557,22 +557,20 @@ def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, r
     (:func:`within_travel`) when the held-out run goes beyond it.  Candidates are ranked by
     their gain on every row (:attr:`HeldOut.ranking_gain`), the same rows for all of them."""
     rows = split.val_test if rows is None else rows
-    out = _heldout_on(split, before, after, chunk, rows, effect)
-    if _by_travel(before, after):
-        inside = within_travel(split, rows, chunk)
-        if inside.sum() < rows.sum():
-            out = replace(_heldout_on(split, before, after, chunk, inside, effect), within_travel=True, gain_all_rows=out.gain)
-    return out
+    y = split.val.y
+    p0, p1 = before.predict(split.val), after.predict(split.val)
+    acting = after.term_force(split.val, (effect,)) if effect is not None and CATALOGUE[effect].acts_over_time else None
 
+    def on(r: Array) -> HeldOut:
+        t, p, m = paired_chunk_test(y[r] - p0[r], y[r] - p1[r], chunk, None if acting is None else acting[r])
+        e0, e1 = relative_error(y[r], p0[r]), relative_error(y[r], p1[r])
+        return HeldOut(t, p, 1.0 - e1 / e0 if e0 > 0 else 0.0, m, e0, e1)
 
-def _heldout_on(split: Split, before: LinearModel, after: LinearModel, chunk: int, rows: Array, effect: str | None) -> HeldOut:
-    y = split.val.y[rows]
-    r0 = y - before.predict(split.val)[rows]
-    r1 = y - after.predict(split.val)[rows]
-    acting = after.term_force(split.val, (effect,))[rows] if effect is not None and CATALOGUE[effect].acts_over_time else None
-    t, p, m = paired_chunk_test(r0, r1, chunk, acting)
-    e0, e1 = relative_error(y, y - r0), relative_error(y, y - r1)
-    return HeldOut(t, p, 1.0 - e1 / e0 if e0 > 0 else 0.0, m, e0, e1)
+    inside = within_travel(split, rows, chunk) if _by_travel(before, after) else rows
+    if inside.sum() == rows.sum():
+        return on(rows)
+    e0, e1 = relative_error(y[rows], p0[rows]), relative_error(y[rows], p1[rows])
+    return replace(on(inside), within_travel=True, gain_all_rows=1.0 - e1 / e0 if e0 > 0 else 0.0)
 
 
 def within_travel(split: Split, rows: Array, chunk: int) -> Array:
@@ -1488,6 +1486,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     creep = _creeping(st) if any(eff.creeping for eff, _ in pool) else st
     fitted: list[tuple[Effect, Effect, _State, LinearModel, float, dict[str, Any]]] = []
     shared = 0  # the pairs that could enter, whatever the held-out tests show
+    current_cv: dict[tuple[int, bool], float] = {}  # the current model's, per state and scoring
     for (ea, ma), (eb, mb) in pairs:
         prog.update(note=f"round {rnd}: {ea.name} + {eb.name}")
         ps = creep if ea.creeping or eb.creeping else st
@@ -1497,7 +1496,10 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             if any(e.check(both, split.est) is not None for e in (ea, eb)):
                 continue
             by_travel = _by_travel(both, ps.model)
-            if not cfg.gains_on_estimation(1.0 - _cv(both, split, cfg, by_travel) / _cv(ps.model, split, cfg, by_travel)):
+            key = (id(ps), by_travel)
+            if key not in current_cv:
+                current_cv[key] = _cv(ps.model, split, cfg, by_travel)
+            if not cfg.gains_on_estimation(1.0 - _cv(both, split, cfg, by_travel) / current_cv[key]):
                 continue  # it cannot enter: no share of the level
             if heldout(split, ps.model, both, st.chunk).gain < cfg.min_gain:
                 shared += 1  # left out by a held-out test, so it keeps its share of the level
