@@ -54,6 +54,27 @@ def test_clean_runs_end_with_nothing_added(ci_results):
     assert summary["false_rate"] == 0.0
 
 
+def test_pooled_draws_add_their_counts_and_narrow_the_interval(ci_run, tmp_path):
+    import shutil
+
+    from loop_campaign import pool
+
+    _, summary, out = ci_run
+    dirs = [tmp_path / "a", tmp_path / "b"]
+    for d in dirs:
+        d.mkdir()
+        shutil.copy(out / "results.json", d / "results.json")
+    draws = pool.load(dirs)
+    ids = [r["id"] for _, rs in draws for r in rs]
+    assert len(set(ids)) == len(ids) == 2 * summary["n_cases"]  # each draw's ids kept apart
+    pooled = pool.summarize([r for _, rs in draws for r in rs])
+    one, two = pool.rates(summary), pool.rates(pooled)
+    assert all(two[k] == (2 * one[k][0], 2 * one[k][1]) for k in one)
+    k, n = one["clean runs, nothing added (>= 98 %)"]
+    (lo1, hi1), (lo2, hi2) = pool.wilson(k, n), pool.wilson(2 * k, 2 * n)
+    assert lo1 <= k / n <= hi1 and hi2 - lo2 < hi1 - lo1
+
+
 def test_the_jittered_rotary_log_is_resampled_and_reported_in_rotary_units(ci_run):
     import json
 

@@ -57,6 +57,15 @@ def test_the_estimation_gain_is_measured_like_the_held_out_one():
     assert free.gains_on_estimation(1e-9) and not free.gains_on_estimation(0.0) and not free.gains_on_estimation(-0.2)
 
 
+def test_a_reference_that_fits_exactly_leaves_no_gain_and_no_division_by_zero():
+    from gmsfric.loop.select import sse_gain
+
+    assert sse_gain(0.5, 2.0) == pytest.approx(0.75)
+    exact = sse_gain(0.0, 0.0)
+    assert np.isnan(exact) and np.isnan(sse_gain(1e-3, 0.0))
+    assert not LoopConfig(min_estimation_gain=0.0).gains_on_estimation(exact)
+
+
 def test_levels_spend_alpha_over_rounds_and_effects():
     cfg = LoopConfig(alpha=0.01)
     # the sum over rounds of (per-test level x tests) stays below alpha

@@ -281,10 +281,17 @@ class LoopConfig:
         return self.alpha * 0.5**rnd / max(n_tests, 1)
 
 
-def error_gain(sse_gain: float) -> float:
+def sse_gain(sse: float, sse_reference: float) -> float:
+    """The relative decrease ``1 - sse / sse_reference`` of a (cross-validated) SSE; NaN when the
+    reference's is zero: a model that fits exactly leaves nothing to gain, and NaN is no gain to
+    every check (:meth:`LoopConfig.gains_on_estimation`)."""
+    return 1.0 - sse / sse_reference if sse_reference > 0 else float("nan")
+
+
+def error_gain(gain: float) -> float:
     """The relative decrease of an error (the root of an SSE) that a relative decrease
-    ``sse_gain`` of the SSE makes."""
-    return 1.0 - float(np.sqrt(max(1.0 - sse_gain, 0.0)))
+    ``gain`` of the SSE makes."""
+    return 1.0 - float(np.sqrt(max(1.0 - gain, 0.0)))
 
 
 @dataclass
@@ -927,7 +934,7 @@ def _rival_fits_better(eff: Effect, model: LinearModel, chosen: LinearModel, spl
             cv_rival = _cv(rival, split, cfg, by_travel)
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             continue
-        if cv_rival <= RIVAL_MARGIN * cv:
+        if cv > 0 and cv_rival <= RIVAL_MARGIN * cv:
             return f"{what} fits the estimation rows better ({cv_rival / cv:.2g} of its cross-validated error)"
     return None
 
@@ -1189,7 +1196,7 @@ def _candidate(m: LinearModel, effect: str, others: list[str], st: _State, cfg: 
         null = _rechoose(_tested_against(m, effect, st), others, st, cfg)
     null = _fit(null, st.split)
     by_travel = _by_travel(m, null)
-    return m, null, 1.0 - _cv(m, st.split, cfg, by_travel) / _cv(null, st.split, cfg, by_travel)
+    return m, null, sse_gain(_cv(m, st.split, cfg, by_travel), _cv(null, st.split, cfg, by_travel))
 
 
 def _delta_bic(m: LinearModel, null: LinearModel, split: Split) -> float:
@@ -1499,7 +1506,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             key = (id(ps), by_travel)
             if key not in current_cv:
                 current_cv[key] = _cv(ps.model, split, cfg, by_travel)
-            if not cfg.gains_on_estimation(1.0 - _cv(both, split, cfg, by_travel) / current_cv[key]):
+            if not cfg.gains_on_estimation(sse_gain(_cv(both, split, cfg, by_travel), current_cv[key])):
                 continue  # it cannot enter: no share of the level
             if heldout(split, ps.model, both, st.chunk).gain < cfg.min_gain:
                 shared += 1  # left out by a held-out test, so it keeps its share of the level

@@ -1,0 +1,99 @@
+"""Pool finished campaigns: one report over several draws, with 95 % intervals on the rates.
+
+One draw holds ~330 cases, so a rate near a target moves by a case or two between draws (a false
+effect in 2 % of cases is 6.6 cases).  Pooling several draws of the *same* loop, each drawn with
+its own seed, gives the rates with the precision the targets need::
+
+    python benches/loop_campaign/pool.py /tmp/s119 /tmp/s121 /tmp/s123
+
+Each DIR is a finished ``run.py --out`` (its ``results.json``).  Case ids are prefixed with the
+directory's name, the report is :func:`score.format_report` over all of them, and a table of the
+targets' rates follows with Wilson score intervals (``scipy.stats.binomtest``), per draw and pooled.
+Only pool draws run with the same loop: the script does not check that.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from scipy import stats
+
+if __package__ in (None, ""):  # run as a script: make the package importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    __package__ = "loop_campaign"
+
+from .score import TARGETS, format_report, summarize  # noqa: E402
+
+
+def load(dirs: list[Path]) -> list[tuple[str, list[dict[str, Any]]]]:
+    """``(label, results)`` per finished campaign directory, ids prefixed with the label."""
+    out = []
+    for d in dirs:
+        cases = json.loads((d / "results.json").read_text())["cases"]
+        out.append((d.name, [dict(r, id=f"{d.name}/{r['id']}") for r in cases]))
+    return out
+
+
+def wilson(k: int, n: int) -> tuple[float, float]:
+    """The 95 % Wilson score interval of the rate ``k / n`` (``n > 0``)."""
+    ci = stats.binomtest(k, n).proportion_ci(0.95, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
+def interval(k: int, n: int) -> str:
+    """``k/n (p %, lo-hi)``, percentages, the interval :func:`wilson`'s."""
+    if n == 0:
+        return "-"
+    lo, hi = wilson(k, n)
+    return f"{k}/{n} ({100 * k / n:.1f} %, {100 * lo:.1f}-{100 * hi:.1f})"
+
+
+def rates(s: dict[str, Any]) -> dict[str, tuple[int, int]]:
+    """The targets' rates of one summary as ``(k, n)``."""
+    n_false = round(s["false_rate"] * s["n_completed"])
+    out = {"false effect in a case (<= 2 %)": (n_false, s["n_completed"]),
+           "clean runs, nothing added (>= 98 %)": tuple(s["clean"][:2]),
+           "pairs, both detectable, both found (>= 80 %)": tuple(s["pairs_both_detectable"][:2]),
+           "pairs, both beyond the nulls, both found": tuple(s["pairs_both_detectable_beyond_null"][:2])}
+    for eff, row in s["recall"].items():
+        for key, what in (("det", "detectable"), ("det_moving", "det. moving"), ("det_null", "det. beyond null")):
+            out[f"recall {eff}, {what}"] = tuple(row[key][:2])
+    return out
+
+
+def pooled_table(per_draw: list[tuple[str, dict[str, Any]]], pooled: dict[str, Any]) -> str:
+    """The targets' rates per draw and pooled, with their intervals."""
+    labels = [lab for lab, _ in per_draw]
+    rows = {lab: rates(s) for lab, s in per_draw}
+    all_rates = rates(pooled)
+    lines = [f"Rates with 95 % Wilson intervals; targets: recall >= {TARGETS['recall']:.0%}, false <= {TARGETS['false']:.0%}, "
+             f"clean >= {TARGETS['clean']:.0%}, pairs >= {TARGETS['pairs']:.0%}"]
+    lines.append(f"  {'rate':52s} " + " ".join(f"{lab:>10s}" for lab in labels) + f"  {'pooled':>30s}")
+    for name, (k, n) in all_rates.items():
+        cells = " ".join(f"{rows[lab][name][0]:>4d}/{rows[lab][name][1]:<5d}" for lab in labels)
+        lines.append(f"  {name:52s} {cells}  {interval(k, n):>30s}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("dirs", nargs="+", type=Path, help="finished campaign directories (run.py --out)")
+    args = p.parse_args(argv)
+    for d in args.dirs:
+        if not (d / "results.json").is_file():
+            p.error(f"{d}: no results.json (not a finished campaign)")
+    draws = load(args.dirs)
+    everything = [r for _, rs in draws for r in rs]
+    pooled = summarize(everything)
+    print(format_report(everything, pooled))
+    print()
+    print(pooled_table([(lab, summarize(rs)) for lab, rs in draws], pooled))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
