@@ -268,7 +268,7 @@ def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     assert tried and not any(s.accepted for s in tried)
     assert all("no resonant peak" in s.reason or "held-out" in s.reason for s in tried)
     eff = CATALOGUE["compliance"]
-    from gmsfric.loop import select
+    from gmsfric.loop import heldout
 
     # without the probe, the damping band leaves only resonant fits, and they gain nothing here
     monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, probe=None))
@@ -276,7 +276,7 @@ def test_an_overdamped_fit_refuses_compliance(monkeypatch):
     # with any damping taken for a load on a spring, and judged on the fast held-out rows alone,
     # the lag is named
     monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, probe=None, physical=lambda p, s: None))
-    monkeypatch.setattr(select, "settled_rows", lambda s: np.ones(s.n_rows, bool))
+    monkeypatch.setattr(heldout, "settled_rows", lambda s: np.ones(s.n_rows, bool))
     assert run_loop(*runs, cfg).effects == ["asymmetric_friction", "compliance"]
 
 
@@ -381,7 +381,7 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     import dataclasses
 
     from gmsfric.loop import CATALOGUE, LoopConfig, run_loop
-    from gmsfric.loop import effects, select
+    from gmsfric.loop import effects, heldout, select
 
     runs = _campaign_runs(seed, case_id)
     # the delay tested alone, at the level it has among the whole catalogue's candidates
@@ -391,7 +391,7 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     refused = [s for s in res.steps if s.effect == "input_delay"]
     assert refused and "not confirmed away from reversals" in refused[0].reason
     if margin == "filters":
-        monkeypatch.setattr(select, "settled_rows", lambda s: np.ones(s.n_rows, bool))
+        monkeypatch.setattr(heldout, "settled_rows", lambda s: np.ones(s.n_rows, bool))
     else:
         monkeypatch.setattr(effects, "decimation_settling_rows", lambda dec: 0)
     # each guard holds alone: fitted again on rows clear of the (narrower) margins, the
@@ -481,7 +481,7 @@ def test_a_position_basis_is_tested_within_the_estimation_travel(monkeypatch):
     position is a guess.  Within the estimation travel the pair removes most of the held-out
     error and enters; tested on every held-out row, each member loses given the other and
     nothing is named."""
-    from gmsfric.loop import LoopConfig, run_loop, select
+    from gmsfric.loop import LoopConfig, heldout, run_loop
 
     runs = _campaign_runs(117, "pair-180-stribeck+position_dependent_force")
     cfg = LoopConfig(progress=False, effects=("stribeck", "position_dependent_force", "friction_drift"))
@@ -492,7 +492,7 @@ def test_a_position_basis_is_tested_within_the_estimation_travel(monkeypatch):
     q_est = res.split.est.rows["q"][res.split.est_fit]
     q_val = res.split.val.rows["q"][res.split.val_test]
     assert np.mean(q_val > q_est.max()) > 0.1
-    monkeypatch.setattr(select, "within_travel", lambda split, rows, chunk: rows)
+    monkeypatch.setattr(heldout, "within_travel", lambda split, rows, chunk: rows)
     assert run_loop(*runs, cfg).effects == []
 
 
@@ -730,7 +730,7 @@ def test_a_delay_clear_of_reversals_is_tested_on_chunks_cut_for_those_rows(monke
     admits), those rows confirm it only at the nominal level, and it enters on the size of its
     gain there (more than a third of its gain on all rows) beyond a freely timed switch."""
     from gmsfric.loop import LoopConfig, run_loop
-    from gmsfric.loop import select
+    from gmsfric.loop import heldout, select
 
     runs = _campaign_runs(59, "single-097-input_delay")
     cfg = LoopConfig(progress=False)
@@ -738,8 +738,8 @@ def test_a_delay_clear_of_reversals_is_tested_on_chunks_cut_for_those_rows(monke
     assert "input_delay" in res.effects
     step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
     assert step.evidence["t_heldout_away_from_reversals"] >= cfg.t_threshold and "clear_of_reversals" not in step.evidence
-    cut_like_all_rows = select.chunk_rows
-    monkeypatch.setattr(select, "chunk_rows", lambda split, n: cut_like_all_rows(split, int(split.val_test.sum())))
+    cut_like_all_rows = heldout.chunk_rows
+    monkeypatch.setattr(heldout, "chunk_rows", lambda split, n: cut_like_all_rows(split, int(split.val_test.sum())))
     monkeypatch.setattr(select, "_screened", lambda *args: True)
     res = run_loop(*runs, cfg)
     coarse = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)

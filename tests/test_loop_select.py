@@ -12,7 +12,8 @@ from gmsfric import InvalidInputError
 from gmsfric.loop import LoopConfig, run_loop
 from gmsfric.loop.data import AxisData
 from gmsfric.loop.rigs import Rig, simulate_rig
-from gmsfric.loop.select import _cv_sse, baseline_physics, make_split, paired_chunk_test
+from gmsfric.loop.heldout import paired_chunk_test
+from gmsfric.loop.select import _cv_sse, baseline_physics, make_split
 
 
 @pytest.mark.parametrize(
@@ -101,7 +102,7 @@ def test_rows_clear_of_reversals_are_cut_into_at_least_twenty_chunks_and_keep_th
     rule applied to their number they still give 20 chunks (of at least 10 rows), and on chunks
     about twice the residual's correlation time the one-sided 5 % level holds within sampling
     error."""
-    from gmsfric.loop.select import chunk_rows
+    from gmsfric.loop.heldout import chunk_rows
 
     split = make_split(simulate_rig(Rig(seed=3, fs=1000.0, duration=8.0)), None, LoopConfig(progress=False))
     for n in (200, 400, 931, 1500, 6000):
@@ -351,8 +352,8 @@ def _pair_state(force_extra, seed: int = 3):
     """Loop state after the baseline on a clean rig whose force carries ``force_extra(q, qd)``,
     and every candidate's best variant (as a round of the loop computes them)."""
     from gmsfric._progress import Progress
-    from gmsfric.loop.effects import CATALOGUE, dip_resolution
-    from gmsfric.loop.select import _best_variant, _by_travel, _cv, _residual_rows, stage_baseline, stage_prepare
+    from gmsfric.loop.effects import CATALOGUE, dip_resolution, has_position_basis
+    from gmsfric.loop.select import _best_variant, _cv, _residual_rows, stage_baseline, stage_prepare
 
     d = simulate_rig(Rig(seed=seed, fs=1000.0, duration=16.0))
     qd = np.gradient(d.position, d.t)
@@ -366,7 +367,7 @@ def _pair_state(force_extra, seed: int = 3):
         out = []
         for n in names:
             m, _ = _best_variant(CATALOGUE[n], st.model, st, cfg, r_est)
-            by_travel = _by_travel(m, st.model)
+            by_travel = has_position_basis(m, st.model)
             out.append((1.0 - _cv(m, split, cfg, by_travel) / _cv(st.model, split, cfg, by_travel), CATALOGUE[n], m))
         return out
 
@@ -564,7 +565,8 @@ def test_the_coulomb_guard_refuses_a_fall_of_a_physical_baselines_level(monkeypa
 def test_a_delay_beyond_a_free_switch_needs_the_level_unless_it_keeps_most_of_its_gain(p_sw, gain_sw, relax, stands):
     """The free-switch comparison of a delay whose held-out gain on all moving rows is 60 % (level
     0.0125): at the family-wise level, or at alpha when it keeps half of that gain."""
-    from gmsfric.loop.select import HeldOut, _beats_a_free_switch
+    from gmsfric.loop.heldout import HeldOut
+    from gmsfric.loop.select import _beats_a_free_switch
 
     cfg = LoopConfig(progress=False)
     h = HeldOut(t=5.7, p=0.001, gain=0.60, chunks=6, error_before=10.0, error_after=4.0)

@@ -217,8 +217,8 @@ class Effect:
     acts_over_time : bool
         The effect's force changes over the run (a warm-up dies out, a drift grows): its held-out
         tests (forward, in pairs, in exchanges and backward) are also made on the chunks where its
-        own fitted force is at least its mean chunk's (``select.ACTING_FRACTION``), the smaller
-        p-value doubled (``select.paired_chunk_test``).  With the effect, the baseline is refitted
+        own fitted force is at least its mean chunk's (``heldout.ACTING_FRACTION``), the smaller
+        p-value doubled (``heldout.paired_chunk_test``).  With the effect, the baseline is refitted
         and differs from the null's everywhere, and the chunks where a warm-up has died out would
         weigh as much as those where it acts.  The chunks are chosen from the fitted force, not
         the measured one, so a useless effect still gains nothing on them on average.
@@ -893,3 +893,13 @@ CATALOGUE: dict[str, Effect] = {
         Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
     )
 }
+
+
+#: Effects whose columns are functions of the position: a basis in the position is known only
+#: over the travel the estimation run covered.
+POSITION_EFFECTS = frozenset({"position_dependent_friction", "position_dependent_force"})
+
+
+def has_position_basis(*models: LinearModel) -> bool:
+    """Whether any of ``models`` has a term in the position (:data:`POSITION_EFFECTS`)."""
+    return any(t.name in POSITION_EFFECTS for m in models for t in m.terms)
