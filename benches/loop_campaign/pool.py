@@ -79,9 +79,33 @@ def pooled_table(per_draw: list[tuple[str, dict[str, Any]]], pooled: dict[str, A
     return "\n".join(lines)
 
 
+def markdown_table(per_draw: list[tuple[str, dict[str, Any]]], pooled: dict[str, Any]) -> str:
+    """The targets' rates per draw and pooled as a Markdown table (for docs/loop.md)."""
+    labels = [lab for lab, _ in per_draw]
+    rows = {lab: rates(s) for lab, s in per_draw}
+    lines = ["| | " + " | ".join(labels) + " | **pooled** (95 % interval) |", "|---|" + "---|" * (len(labels) + 1)]
+    for name, (k, n) in rates(pooled).items():
+        if name.endswith((", det. moving", ", det. beyond null")):
+            continue
+        cells = " | ".join(f"{rows[lab][name][0]}/{rows[lab][name][1]}" for lab in labels)
+        lines.append(f"| {name} | {cells} | **{interval(k, n)}** |")
+    lines.append("")
+    lines.append("| recall where the loop can see the effect (information) | " + " | ".join(labels) + " | **pooled** |")
+    lines.append("|---|" + "---|" * (len(labels) + 1))
+    pooled_rates = rates(pooled)
+    for name, (k, n) in pooled_rates.items():
+        # beyond the nulls differs from the moving rows only for the effects tested against a null
+        same_as_moving = name.endswith(", det. beyond null") and pooled_rates[name.replace("beyond null", "moving")] == (k, n)
+        if name.endswith((", det. moving", ", det. beyond null")) and not same_as_moving:
+            cells = " | ".join(f"{rows[lab][name][0]}/{rows[lab][name][1]}" for lab in labels)
+            lines.append(f"| {name} | {cells} | **{interval(k, n)}** |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("dirs", nargs="+", type=Path, help="finished campaign directories (run.py --out)")
+    p.add_argument("--markdown", action="store_true", help="only the targets' table, in Markdown")
     args = p.parse_args(argv)
     for d in args.dirs:
         if not (d / "results.json").is_file():
@@ -89,6 +113,9 @@ def main(argv: list[str] | None = None) -> int:
     draws = load(args.dirs)
     everything = [r for _, rs in draws for r in rs]
     pooled = summarize(everything)
+    if args.markdown:
+        print(markdown_table([(lab, summarize(rs)) for lab, rs in draws], pooled))
+        return 0
     print(format_report(everything, pooled))
     print()
     print(pooled_table([(lab, summarize(rs)) for lab, rs in draws], pooled))
