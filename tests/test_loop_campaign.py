@@ -67,12 +67,27 @@ def test_pooled_draws_add_their_counts_and_narrow_the_interval(ci_run, tmp_path)
     draws = pool.load(dirs)
     ids = [r["id"] for _, rs in draws for r in rs]
     assert len(set(ids)) == len(ids) == 2 * summary["n_cases"]  # each draw's ids kept apart
-    pooled = pool.summarize([r for _, rs in draws for r in rs])
+    everything, repeats = pool.distinct(draws)
+    assert repeats == 0 and len(everything) == len(ids)  # simulated cases are new in every draw
+    pooled = pool.summarize(everything)
     one, two = pool.rates(summary), pool.rates(pooled)
     assert all(two[k] == (2 * one[k][0], 2 * one[k][1]) for k in one)
     k, n = one["clean runs, nothing added (>= 98 %)"]
     (lo1, hi1), (lo2, hi2) = pool.wilson(k, n), pool.wilson(2 * k, 2 * n)
     assert lo1 <= k / n <= hi1 and hi2 - lo2 < hi1 - lo1
+
+
+def test_a_real_data_experiment_repeated_by_another_draw_is_pooled_once():
+    from loop_campaign import pool
+
+    emps = {"sim": "emps", "files": {"est": "DATA_EMPS.mat", "val": "DATA_EMPS_PULSES.mat"}, "direction": "forward",
+            "baseline": "reference", "effects": [{"name": "offset", "f0": 5.0}]}
+    a = [{"id": "a/emps-1", "experiment": pool.experiment(dict(emps, seed=1))}, {"id": "a/single-1", "experiment": None}]
+    b = [{"id": "b/emps-1", "experiment": pool.experiment(dict(emps, seed=2))},  # another draw, the same experiment
+         {"id": "b/emps-2", "experiment": pool.experiment(dict(emps, effects=[{"name": "offset", "f0": 9.0}]))},
+         {"id": "b/single-1", "experiment": pool.experiment({"sim": "own"})}]
+    kept, repeats = pool.distinct([("a", a), ("b", b)])
+    assert repeats == 1 and [r["id"] for r in kept] == ["a/emps-1", "a/single-1", "b/emps-2", "b/single-1"]
 
 
 def test_the_jittered_rotary_log_is_resampled_and_reported_in_rotary_units(ci_run):

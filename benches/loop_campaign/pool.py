@@ -6,9 +6,12 @@ its own seed, gives the rates with the precision the targets need::
 
     python benches/loop_campaign/pool.py /tmp/s119 /tmp/s121 /tmp/s123
 
-Each DIR is a finished ``run.py --out`` (its ``results.json``).  Case ids are prefixed with the
-directory's name, the report is :func:`score.format_report` over all of them, and a table of the
-targets' rates follows with Wilson score intervals (``scipy.stats.binomtest``), per draw and pooled.
+Each DIR is a finished ``run.py --out`` (its ``results.json`` and ``cases.json``).  Case ids are
+prefixed with the directory's name, the report is :func:`score.format_report` over all of them,
+and a table of the targets' rates follows with Wilson score intervals (``scipy.stats.binomtest``),
+per draw and pooled.  The intervals take the cases as independent, which the EMPS group's are not
+across draws: most draws plant the same term on the same two real runs, and the loop decides the
+same.  Such a repeat is pooled once (:func:`distinct`); a draw's own column keeps all its cases.
 Only pool draws run with the same loop: the script does not check that.
 """
 
@@ -30,12 +33,38 @@ from .score import TARGETS, format_report, summarize  # noqa: E402
 
 
 def load(dirs: list[Path]) -> list[tuple[str, list[dict[str, Any]]]]:
-    """``(label, results)`` per finished campaign directory, ids prefixed with the label."""
+    """``(label, results)`` per finished campaign directory, ids prefixed with the label; each
+    result carries its case's ``experiment`` (:func:`experiment`) when ``cases.json`` is there."""
     out = []
     for d in dirs:
-        cases = json.loads((d / "results.json").read_text())["cases"]
-        out.append((d.name, [dict(r, id=f"{d.name}/{r['id']}") for r in cases]))
+        results = json.loads((d / "results.json").read_text())["cases"]
+        specs = {c["id"]: c for c in json.loads((d / "cases.json").read_text())} if (d / "cases.json").is_file() else {}
+        out.append((d.name, [dict(r, id=f"{d.name}/{r['id']}", experiment=experiment(specs.get(r["id"]))) for r in results]))
     return out
+
+
+def experiment(spec: dict[str, Any] | None) -> str | None:
+    """What makes a real-data case the same experiment in another draw: the runs, their roles and
+    the planted terms (a simulated case is new in every draw: ``None``)."""
+    if spec is None or spec.get("sim") != "emps":
+        return None
+    return json.dumps([spec.get("files"), spec.get("direction"), spec.get("baseline"), spec.get("effects")], sort_keys=True)
+
+
+def distinct(draws: list[tuple[str, list[dict[str, Any]]]]) -> tuple[list[dict[str, Any]], int]:
+    """Every draw's results, a real-data experiment an earlier draw holds left out; and how many."""
+    seen: set[str] = set()
+    out, repeats = [], 0
+    for _, results in draws:
+        for r in results:
+            key = r.get("experiment")
+            if key is not None and key in seen:
+                repeats += 1
+                continue
+            if key is not None:
+                seen.add(key)
+            out.append(r)
+    return out, repeats
 
 
 def wilson(k: int, n: int) -> tuple[float, float]:
@@ -111,12 +140,14 @@ def main(argv: list[str] | None = None) -> int:
         if not (d / "results.json").is_file():
             p.error(f"{d}: no results.json (not a finished campaign)")
     draws = load(args.dirs)
-    everything = [r for _, rs in draws for r in rs]
+    everything, repeats = distinct(draws)
     pooled = summarize(everything)
     if args.markdown:
         print(markdown_table([(lab, summarize(rs)) for lab, rs in draws], pooled))
         return 0
     print(format_report(everything, pooled))
+    print()
+    print(f"{repeats} real-data cases repeat an earlier draw's experiment (the same runs and planted term) and are pooled once.")
     print()
     print(pooled_table([(lab, summarize(rs)) for lab, rs in draws], pooled))
     return 0
