@@ -1,4 +1,5 @@
-"""The held-out comparison of two fitted models: the paired chunk test the selection decides by.
+"""The estimation and held-out rows (:class:`Split`), and the comparison of two fitted models on
+the held-out rows: the paired chunk test the selection decides by.
 
 The held-out rows are cut into contiguous chunks of about a second (:func:`chunk_rows`); per chunk
 the normalised decrease of the squared error ``d = (SSE_before - SSE_after) / (SSE_before +
@@ -12,8 +13,8 @@ minimum gains, which comparisons an effect must pass) are in :mod:`gmsfric.loop.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -21,9 +22,6 @@ from scipy import stats
 from ..errors import IdentificationError
 from .effects import CATALOGUE, dip_resolution, has_position_basis, settled_rows
 from .idim import Array, LinearModel, Signals, relative_error
-
-if TYPE_CHECKING:
-    from .select import Split
 
 #: A held-out chunk where two models' predictions differ by less than this fraction of the mean
 #: chunk's difference carries no evidence between them (:func:`informative_chunks`).  On a
@@ -40,6 +38,54 @@ ACTING_FRACTION = 1.0
 
 #: The paired chunk test uses at least this many chunks.
 MIN_TESTED_CHUNKS = 6
+
+
+@dataclass
+class Split:
+    """Estimation and held-out rows: ``(signals, row mask)`` each, the moving rows of both that
+    fits (``est_fit``) and tests (``val_test``) use, and the moving and creeping rows of both
+    (``est_creep``, ``val_creep``: not stuck, faster than the creep speed) that the tests of a
+    creeping effect use (:meth:`creeping`)."""
+
+    est: Signals
+    est_rows: Array
+    val: Signals
+    val_rows: Array
+    holdout: str
+    est_fit: Array = field(default=None)  # type: ignore[assignment]
+    val_test: Array = field(default=None)  # type: ignore[assignment]
+    est_creep: Array = field(default=None)  # type: ignore[assignment]
+    val_creep: Array = field(default=None)  # type: ignore[assignment]
+    #: How the position filter's cut-off was chosen (the JSON's ``preprocessing``).
+    preprocessing: dict[str, Any] = field(default_factory=dict)
+    #: Which rows fits and tests use, for reports.
+    label: str = "moving"
+
+    def __post_init__(self) -> None:
+        if self.est_fit is None:
+            self.est_fit = self.est_rows & self.est.moving
+        if self.val_test is None:
+            self.val_test = self.val_rows & self.val.moving
+        if self.est_creep is None:
+            self.est_creep = self.est_fit
+        if self.val_creep is None:
+            self.val_creep = self.val_test
+
+    def creeping(self) -> "Split":
+        """The same runs with the moving and creeping rows as the rows fits and tests use."""
+        return replace(self, est_fit=self.est_creep, val_test=self.val_creep, label="moving and creeping")
+
+    def errors(self, m: LinearModel) -> tuple[float, float]:
+        """Estimation and held-out errors (%) on all rows (standstill included)."""
+        e = relative_error(self.est.y[self.est_rows], m.predict(self.est)[self.est_rows])
+        v = relative_error(self.val.y[self.val_rows], m.predict(self.val)[self.val_rows])
+        return e, v
+
+    def errors_moving(self, m: LinearModel) -> tuple[float, float]:
+        """Estimation and held-out errors (%) on the moving rows (the ones the loop fits and tests)."""
+        e = relative_error(self.est.y[self.est_fit], m.predict(self.est)[self.est_fit])
+        v = relative_error(self.val.y[self.val_test], m.predict(self.val)[self.val_test])
+        return e, v
 
 
 @dataclass

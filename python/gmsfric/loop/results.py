@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 
     from ..axis import AxisModel
     from ..system import ClosedLoopResult
-    from .select import Split
+    from .heldout import Split
 
 # Quantity of every parameter the baseline and the effect catalogue produce (exact names, then
 # name patterns); ``None`` marks a name without a known unit.

@@ -80,7 +80,7 @@ from ..identify.diagnostics import emit
 from .checks import check_result
 from .data import AxisData
 from .effects import CATALOGUE, DELAY_STEPS, Effect, detection_limits, has_position_basis, switch_timing
-from .heldout import ClearRows, HeldOut, chunk_rows, clear_rows, heldout, heldout_clear, paired_chunk_test
+from .heldout import ClearRows, HeldOut, Split, chunk_rows, clear_rows, heldout, heldout_clear, paired_chunk_test
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
 from .residuals import Finding, analyse
 from .results import LoopResult, Step
@@ -277,54 +277,6 @@ def error_gain(gain: float) -> float:
     """The relative decrease of an error (the root of an SSE) that a relative decrease
     ``gain`` of the SSE makes."""
     return 1.0 - float(np.sqrt(max(1.0 - gain, 0.0)))
-
-
-@dataclass
-class Split:
-    """Estimation and held-out rows: ``(signals, row mask)`` each, the moving rows of both that
-    fits (``est_fit``) and tests (``val_test``) use, and the moving and creeping rows of both
-    (``est_creep``, ``val_creep``: not stuck, faster than the creep speed) that the tests of a
-    creeping effect use (:meth:`creeping`)."""
-
-    est: Signals
-    est_rows: Array
-    val: Signals
-    val_rows: Array
-    holdout: str
-    est_fit: Array = field(default=None)  # type: ignore[assignment]
-    val_test: Array = field(default=None)  # type: ignore[assignment]
-    est_creep: Array = field(default=None)  # type: ignore[assignment]
-    val_creep: Array = field(default=None)  # type: ignore[assignment]
-    #: How the position filter's cut-off was chosen (the JSON's ``preprocessing``).
-    preprocessing: dict[str, Any] = field(default_factory=dict)
-    #: Which rows fits and tests use, for reports.
-    label: str = "moving"
-
-    def __post_init__(self) -> None:
-        if self.est_fit is None:
-            self.est_fit = self.est_rows & self.est.moving
-        if self.val_test is None:
-            self.val_test = self.val_rows & self.val.moving
-        if self.est_creep is None:
-            self.est_creep = self.est_fit
-        if self.val_creep is None:
-            self.val_creep = self.val_test
-
-    def creeping(self) -> "Split":
-        """The same runs with the moving and creeping rows as the rows fits and tests use."""
-        return replace(self, est_fit=self.est_creep, val_test=self.val_creep, label="moving and creeping")
-
-    def errors(self, m: LinearModel) -> tuple[float, float]:
-        """Estimation and held-out errors (%) on all rows (standstill included)."""
-        e = relative_error(self.est.y[self.est_rows], m.predict(self.est)[self.est_rows])
-        v = relative_error(self.val.y[self.val_rows], m.predict(self.val)[self.val_rows])
-        return e, v
-
-    def errors_moving(self, m: LinearModel) -> tuple[float, float]:
-        """Estimation and held-out errors (%) on the moving rows (the ones the loop fits and tests)."""
-        e = relative_error(self.est.y[self.est_fit], m.predict(self.est)[self.est_fit])
-        v = relative_error(self.val.y[self.val_test], m.predict(self.val)[self.val_test])
-        return e, v
 
 
 #: Moving estimation rows needed to choose the position filter's cut-off (as many as the loop
