@@ -77,6 +77,20 @@ def test_pooled_draws_add_their_counts_and_narrow_the_interval(ci_run, tmp_path)
     assert lo1 <= k / n <= hi1 and hi2 - lo2 < hi1 - lo1
 
 
+def test_a_draw_named_twice_or_without_a_completed_case_is_refused(tmp_path, capsys):
+    import json
+
+    from loop_campaign import pool
+
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (empty / "results.json").write_text(json.dumps({"cases": [{"id": "x", "status": "failed"}]}))
+    for argv, why in (([str(empty), str(empty)], "named twice"), ([str(empty)], "no completed case")):
+        with pytest.raises(SystemExit) as exit_:
+            pool.main(argv)
+        assert exit_.value.code == 2 and why in capsys.readouterr().err
+
+
 def test_a_real_data_experiment_repeated_by_another_draw_is_pooled_once():
     from loop_campaign import pool
 

@@ -83,8 +83,7 @@ def interval(k: int, n: int) -> str:
 
 def rates(s: dict[str, Any]) -> dict[str, tuple[int, int]]:
     """The targets' rates of one summary as ``(k, n)``."""
-    n_false = round(s["false_rate"] * s["n_completed"])
-    out = {"false effect in a case (<= 2 %)": (n_false, s["n_completed"]),
+    out = {"false effect in a case (<= 2 %)": tuple(s["false_cases"]),
            "clean runs, nothing added (>= 98 %)": tuple(s["clean"][:2]),
            "pairs, both detectable, both found (>= 80 %)": tuple(s["pairs_both_detectable"][:2]),
            "pairs, both beyond the nulls, both found": tuple(s["pairs_both_detectable_beyond_null"][:2])}
@@ -98,37 +97,36 @@ def pooled_table(per_draw: list[tuple[str, dict[str, Any]]], pooled: dict[str, A
     """The targets' rates per draw and pooled, with their intervals."""
     labels = [lab for lab, _ in per_draw]
     rows = {lab: rates(s) for lab, s in per_draw}
-    all_rates = rates(pooled)
     lines = [f"Rates with 95 % Wilson intervals; targets: recall >= {TARGETS['recall']:.0%}, false <= {TARGETS['false']:.0%}, "
              f"clean >= {TARGETS['clean']:.0%}, pairs >= {TARGETS['pairs']:.0%}"]
     lines.append(f"  {'rate':52s} " + " ".join(f"{lab:>10s}" for lab in labels) + f"  {'pooled':>30s}")
-    for name, (k, n) in all_rates.items():
+    for name, (k, n) in rates(pooled).items():
         cells = " ".join(f"{rows[lab][name][0]:>4d}/{rows[lab][name][1]:<5d}" for lab in labels)
         lines.append(f"  {name:52s} {cells}  {interval(k, n):>30s}")
     return "\n".join(lines)
 
 
 def markdown_table(per_draw: list[tuple[str, dict[str, Any]]], pooled: dict[str, Any]) -> str:
-    """The targets' rates per draw and pooled as a Markdown table (for docs/loop.md)."""
+    """The targets' rates per draw and pooled as two Markdown tables (for docs/loop.md): the
+    targets, then recall where the loop can see each effect (beyond the nulls only where that
+    differs from the moving rows, i.e. for the effects tested against a null)."""
     labels = [lab for lab, _ in per_draw]
     rows = {lab: rates(s) for lab, s in per_draw}
-    lines = ["| | " + " | ".join(labels) + " | **pooled** (95 % interval) |", "|---|" + "---|" * (len(labels) + 1)]
-    for name, (k, n) in rates(pooled).items():
-        if name.endswith((", det. moving", ", det. beyond null")):
-            continue
-        cells = " | ".join(f"{rows[lab][name][0]}/{rows[lab][name][1]}" for lab in labels)
-        lines.append(f"| {name} | {cells} | **{interval(k, n)}** |")
-    lines.append("")
-    lines.append("| recall where the loop can see the effect (information) | " + " | ".join(labels) + " | **pooled** |")
-    lines.append("|---|" + "---|" * (len(labels) + 1))
     pooled_rates = rates(pooled)
-    for name, (k, n) in pooled_rates.items():
-        # beyond the nulls differs from the moving rows only for the effects tested against a null
-        same_as_moving = name.endswith(", det. beyond null") and pooled_rates[name.replace("beyond null", "moving")] == (k, n)
-        if name.endswith((", det. moving", ", det. beyond null")) and not same_as_moving:
+
+    def table(title: str, names: list[str]) -> list[str]:
+        head = f"| {title} |" if title else "| |"
+        out = [f"{head} " + " | ".join(labels) + " | **pooled** (95 % interval) |", "|---|" + "---|" * (len(labels) + 1)]
+        for name in names:
             cells = " | ".join(f"{rows[lab][name][0]}/{rows[lab][name][1]}" for lab in labels)
-            lines.append(f"| {name} | {cells} | **{interval(k, n)}** |")
-    return "\n".join(lines)
+            out.append(f"| {name} | {cells} | **{interval(*pooled_rates[name])}** |")
+        return out
+
+    seen_by_loop = (", det. moving", ", det. beyond null")
+    targets = [n for n in pooled_rates if not n.endswith(seen_by_loop)]
+    visible = [n for n in pooled_rates if n.endswith(", det. moving")
+               or (n.endswith(", det. beyond null") and pooled_rates[n] != pooled_rates[n.replace("beyond null", "moving")])]
+    return "\n".join(table("", targets) + [""] + table("recall where the loop can see the effect (information)", visible))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -139,7 +137,12 @@ def main(argv: list[str] | None = None) -> int:
     for d in args.dirs:
         if not (d / "results.json").is_file():
             p.error(f"{d}: no results.json (not a finished campaign)")
+    if len({d.resolve() for d in args.dirs}) < len(args.dirs) or len({d.name for d in args.dirs}) < len(args.dirs):
+        p.error("a draw is named twice (the same directory, or two with the same name): pooled twice, its cases would narrow the intervals")
     draws = load(args.dirs)
+    for label, results in draws:
+        if not any(r["status"] == "ok" for r in results):
+            p.error(f"{label}: no completed case to pool")
     everything, repeats = distinct(draws)
     pooled = summarize(everything)
     if args.markdown:

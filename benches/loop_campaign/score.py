@@ -89,6 +89,7 @@ def summarize(results: list[dict[str, Any]]) -> dict[str, Any]:
         "n_cases": len(results), "n_completed": len(done), "n_failed": len(failed),
         "recall": recall,
         "false_rate": len(with_false) / len(done) if done else float("nan"),
+        "false_cases": [len(with_false), len(done)],
         "false_by_group": by_group,
         "false_counts": dict(Counter(e for r in done for e in false_effects(r))),
         "clean": [len(clean_nothing), len(clean_ok), len(clean) - len(clean_ok)],

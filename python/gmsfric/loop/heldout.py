@@ -191,16 +191,19 @@ def heldout(split: Split, before: LinearModel, after: LinearModel, chunk: int, r
     p0, p1 = before.predict(split.val), after.predict(split.val)
     acting = after.term_force(split.val, (effect,)) if effect is not None and CATALOGUE[effect].acts_over_time else None
 
+    def errors(r: Array) -> tuple[float, float, float]:
+        e0, e1 = relative_error(y[r], p0[r]), relative_error(y[r], p1[r])
+        return e0, e1, 1.0 - e1 / e0 if e0 > 0 else 0.0
+
     def on(r: Array) -> HeldOut:
         t, p, m = paired_chunk_test(y[r] - p0[r], y[r] - p1[r], chunk, None if acting is None else acting[r])
-        e0, e1 = relative_error(y[r], p0[r]), relative_error(y[r], p1[r])
-        return HeldOut(t, p, 1.0 - e1 / e0 if e0 > 0 else 0.0, m, e0, e1)
+        e0, e1, gain = errors(r)
+        return HeldOut(t, p, gain, m, e0, e1)
 
     inside = within_travel(split, rows, chunk) if has_position_basis(before, after) else rows
     if inside.sum() == rows.sum():
         return on(rows)
-    e0, e1 = relative_error(y[rows], p0[rows]), relative_error(y[rows], p1[rows])
-    return replace(on(inside), within_travel=True, gain_all_rows=1.0 - e1 / e0 if e0 > 0 else 0.0)
+    return replace(on(inside), within_travel=True, gain_all_rows=errors(rows)[2])
 
 
 def within_travel(split: Split, rows: Array, chunk: int) -> Array:

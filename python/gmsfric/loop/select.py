@@ -1245,7 +1245,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
     creep = _creeping(st) if any(eff.creeping for eff, _ in pool) else st
     fitted: list[tuple[Effect, Effect, _State, LinearModel, float, dict[str, Any]]] = []
     shared = 0  # the pairs that could enter, whatever the held-out tests show
-    current_cv: dict[tuple[int, bool], float] = {}  # the current model's, per state and scoring
+    current_cv: dict[tuple[bool, bool], float] = {}  # the current model's, per state (creeping or not) and scoring
     for (ea, ma), (eb, mb) in pairs:
         prog.update(note=f"round {rnd}: {ea.name} + {eb.name}")
         ps = creep if ea.creeping or eb.creeping else st
@@ -1255,7 +1255,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             if any(e.check(both, split.est) is not None for e in (ea, eb)):
                 continue
             by_travel = has_position_basis(both, ps.model)
-            key = (id(ps), by_travel)
+            key = (ps is creep, by_travel)
             if key not in current_cv:
                 current_cv[key] = _cv(ps.model, split, cfg, by_travel)
             if not cfg.gains_on_estimation(sse_gain(_cv(both, split, cfg, by_travel), current_cv[key])):
