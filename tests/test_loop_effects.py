@@ -4,6 +4,8 @@ the blur of the filtered velocity through a reversal."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -304,8 +306,6 @@ def test_a_stribeck_curve_between_the_grid_widths_is_refined_to_its_own():
     """The grid's widths are a factor ~1.4 apart; a large hump fits far worse between them than at
     its own width, so the best grid curve is refined (width and exponent) before it meets the
     drag probes, which have no width to miss."""
-    from dataclasses import replace
-
     probe, _ = _clean_rig_with(lambda t, qd, v: 0.0 * t)
     s = Signals(probe)
     widths = sorted({tm.hyper[0] for m in CATALOGUE["stribeck"].variants(LinearModel([]), s, np.zeros(s.n_rows))
@@ -424,3 +424,70 @@ def test_the_tone_rival_of_a_resonance_is_at_the_residuals_periodogram_peak():
     assert len(freqs) == 5 and abs(np.median(freqs) - 6.13) <= step
     far = [m.terms[-1].hyper[0] for m, _ in tone_rivals(base, chosen(12.0), s, r)]
     assert all(abs(f - 6.13) > 1.0 for f in far)
+
+
+def _heating_runs(seed: int, strength: float = 1.0) -> tuple[AxisData, AxisData]:
+    """A rig whose friction falls as it warms with the motion (the core's heating, 3 s memory):
+    an estimation run at a steady pace, over which the warm-up is a drift in time, and a held-out
+    run whose pace alternates between brisk and gentle phases."""
+    from gmsfric.axis import AxisModel, Effects, Heating
+    from gmsfric.loop.rigs import _trajectory
+    from gmsfric.models import StaticFriction, Stribeck
+    from gmsfric.system import Plant
+
+    runs = []
+    for s, steady in ((seed, True), (seed + 1000, False)):
+        rig = Rig(effect="heating", seed=s, fs=1000.0, duration=24.0)
+        rng = np.random.default_rng(s)
+        ref = _trajectory(rig, rng)
+        t = np.arange(ref.size) / rig.fs
+        if not steady:
+            ref = ref[0] + (ref - ref[0]) * (0.3 + 0.7 * np.sin(np.pi * t / (0.4 * rig.duration)) ** 2)
+        v_typ = 0.1 * rig.travel / 0.15
+        axis = AxisModel(Plant.from_mass(rig.mass, force_gain=rig.gain), StaticFriction(Stribeck(rig.fc, rig.fc, 1.0), sigma=rig.fv, offset=rig.offset),
+                         Effects(heating=Heating(tau=3.0, d_level=-0.5 * strength * rig.fc / v_typ, d_viscous=-0.3 * strength * rig.fv / v_typ)))
+        res = axis.simulate(1.0 / rig.fs, reference=ref, controller=rig.controller(), quantization=rig.quantization)
+        assert res.command is not None
+        runs.append(AxisData(res.t, res.measured, rig.gain * res.command + rng.normal(0.0, rig.force_noise, ref.size), source=f"heating, seed {s}"))
+    return runs[0], runs[1]
+
+
+def _with_drift_accepted(est: AxisData, val: AxisData, cfg: LoopConfig):
+    """The loop's state after a selection that could only name a friction drift."""
+    from gmsfric.loop.select import stage_baseline, stage_prepare, stage_select
+
+    split, chunk = stage_prepare(est, val, cfg)
+    st = stage_baseline(split, chunk, cfg)
+    stage_select(st, cfg, ["friction_drift"])
+    assert st.model.effects == ["friction_drift"]
+    return st
+
+
+def test_the_other_form_of_a_drift_replaces_it_only_where_it_predicts_the_held_out_run_better():
+    """Heating and a drift in time are two forms of one phenomenon: once a drift is in the model,
+    heating is tried in its place at the nominal level (it names nothing new) and judged against
+    the drift on the held-out run, while any other effect tried in the drift's place takes the
+    family's share of the level.  On a heating rig whose held-out run changes pace (over a steady
+    estimation run, a drift in time enters first), heating replaces the drift; on a drift rig,
+    the drift stays."""
+    from gmsfric._progress import Progress
+    from gmsfric.loop.effects import alternative_forms
+    from gmsfric.loop.heldout import clear_rows
+    from gmsfric.loop.select import _exchange_step, _residual_rows
+
+    assert alternative_forms("heating", "friction_drift") and alternative_forms("friction_drift", "heating")
+    assert not alternative_forms("friction_drift", "stribeck")
+    names = ["friction_drift", "heating", "asymmetric_friction"]
+    cfg = LoopConfig(progress=False, effects=tuple(names))
+    drift = Rig(effect="friction_drift", seed=2, fs=1000.0, duration=24.0)
+    for runs, replaced in ((_heating_runs(2), True), ((simulate_rig(drift), simulate_rig(replace(drift, seed=1002))), False)):
+        st = _with_drift_accepted(*runs, cfg)
+        fnd, _ = _residual_rows(st, cfg)
+        made = _exchange_step(st, cfg, 3, names, clear_rows(st.split), fnd, Progress("test", enabled=False))
+        trial = next(s for s in st.steps if s.effect == "heating" and s.evidence.get("replaces") == "friction_drift")
+        assert trial.evidence["other_form_of"] == "friction_drift" and trial.evidence["level"] == cfg.alpha
+        # an effect that is no form of the drift takes the family's share of the level
+        other = next(s for s in st.steps if s.effect == "asymmetric_friction" and s.evidence.get("replaces") == "friction_drift")
+        assert "other_form_of" not in other.evidence and other.evidence["level"] < cfg.alpha / 4
+        assert made is replaced and trial.accepted is replaced
+        assert st.model.effects == (["heating"] if replaced else ["friction_drift"])

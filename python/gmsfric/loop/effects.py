@@ -895,6 +895,19 @@ CATALOGUE: dict[str, Effect] = {
 }
 
 
+#: Catalogue effects that are two forms of one phenomenon: friction that changes over the run,
+#: following the clock (a drift) or the motion's recent pace (heating).  Over an estimation run of
+#: steady pace their columns are nearly collinear, so the run that tells them apart is the held-out
+#: one, with another pace; once one of them is in the model, the other replaces it when it predicts
+#: that run better (``select._exchange_step``).
+ALTERNATIVE_FORMS = (frozenset({"friction_drift", "heating"}),)
+
+
+def alternative_forms(a: str, b: str) -> bool:
+    """Whether effects ``a`` and ``b`` are two forms of one phenomenon (:data:`ALTERNATIVE_FORMS`)."""
+    return frozenset({a, b}) in ALTERNATIVE_FORMS
+
+
 #: Effects whose columns are functions of the position: a basis in the position is known only
 #: over the travel the estimation run covered.
 POSITION_EFFECTS = frozenset({"position_dependent_friction", "position_dependent_force"})
