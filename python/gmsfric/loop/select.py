@@ -1072,7 +1072,7 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
     names no new phenomenon: it is tested at the nominal ``alpha`` rather than the family's share,
     and judged against the current model on the held-out run alone, since over the estimation
     run's pace the two forms' columns are nearly collinear (a heating rig, outside audit: heating
-    beats the drift that entered first by 7-22 % of the held-out error, t = 2.4-5.0, while on
+    beats the drift that entered first by 4-22 % of the held-out error, t = 2.4-5.0, while on
     drift rigs heating never beats the drift, t <= 0.3)."""
     split, dt = st.split, st.split.est.dt
     creep = _creeping(st) if any(CATALOGUE[n].creeping for n in names) else st
