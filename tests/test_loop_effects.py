@@ -11,7 +11,7 @@ import pytest
 
 from gmsfric.loop.data import AxisData
 from gmsfric.loop import LoopConfig, run_loop
-from gmsfric.loop.effects import (CATALOGUE, COMPLIANCE_GRID_ZETAS, _compliance_variants, _delay, _play, _presliding, _stribeck, _stribeck_ok,
+from gmsfric.loop.effects import (CATALOGUE, COMPLIANCE_GRID_ZETAS, DIP_BLUR_MARGIN, _compliance_variants, _delay, _play, _presliding, _stribeck, _stribeck_ok,
                                    detection_limits, dip_resolution, resonance_limit, stribeck_fall, velocity_resolution)
 from gmsfric.loop.rigs import Rig, simulate_rig
 from gmsfric.loop.idim import LinearModel, Signals
@@ -103,10 +103,13 @@ def test_a_dip_mostly_inside_the_filter_blur_is_not_a_stribeck_curve():
     assert why is not None and "dip" in why
     # the same width as a hump (friction higher at rest) is fine: blur never makes a hump
     assert _stribeck_ok(_params(5.0, +2.0, narrow), s) is None
-    # a dip that keeps at least half its depth beyond the blur is a friction curve ...
-    assert _stribeck_ok(_params(5.0, -2.0, 1.5 * dip), s) is None  # exp(-1/1.5) = 0.51
-    # ... one only a little wider than the blur is mostly inside it
-    assert "less than half" in _stribeck_ok(_params(5.0, -2.0, 1.3 * dip), s)  # exp(-1/1.3) = 0.46
+    # a dip that keeps at least half its depth beyond the blur (with its margin) is a friction
+    # curve: exp(-blur / vs) >= 1/2 for vs >= blur / ln 2 ...
+    blur = DIP_BLUR_MARGIN * dip
+    assert DIP_BLUR_MARGIN > 1.0
+    assert _stribeck_ok(_params(5.0, -2.0, 1.05 * blur / np.log(2.0)), s) is None
+    # ... one only a little narrower is mostly inside it
+    assert "less than half" in _stribeck_ok(_params(5.0, -2.0, 0.95 * blur / np.log(2.0)), s)
     # the friction at rest must stay positive whatever the width
     assert "not positive" in _stribeck_ok(_params(5.0, -6.0, 10 * dip), s)
 
