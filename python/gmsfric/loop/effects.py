@@ -757,10 +757,11 @@ def _stribeck_curve_ok(p: dict[str, dict[str, float]], s: Signals) -> str | None
         return f"friction level at rest Fs = Fc + (Fs - Fc) = {fc + ds:.3g} is not positive"
     if ds > 0 and "Fc" in p and fc <= 0:
         return f"the sliding friction level Fc = {fc:.3g} is not positive: the hump carries all of the friction"
-    blur = DIP_BLUR_MARGIN * dip_resolution(s)
-    if ds < 0 and "vs" in p and curves.stribeck_shape(blur, p["vs"]["value"], p.get("stribeck_delta", {"value": 1.0})["value"]) < 0.5:
-        return (f"a dip (Fs - Fc = {ds:.3g}) of width vs = {p['vs']['value']:.3g} keeps less than half its depth beyond the velocity "
-                f"filter's blur through a reversal ({blur:.3g}): the switch of sign(qd) looks like that")
+    if ds < 0 and "vs" in p:
+        blur = DIP_BLUR_MARGIN * dip_resolution(s)
+        if curves.stribeck_shape(blur, p["vs"]["value"], p.get("stribeck_delta", {"value": 1.0})["value"]) < 0.5:
+            return (f"a dip (Fs - Fc = {ds:.3g}) of width vs = {p['vs']['value']:.3g} keeps less than half its depth beyond the velocity "
+                    f"filter's blur through a reversal ({blur:.3g}): the switch of sign(qd) looks like that")
     return None
 
 
