@@ -1063,3 +1063,39 @@ def test_an_effect_must_explain_the_run_it_was_fitted_on_too():
     assert 0 < error_gain(ev["cv_gain"]) < cfg.min_estimation_gain
     assert ev["validation_gain"] >= 2 * cfg.min_gain and ev["t_heldout"] >= cfg.t_threshold
     assert run_loop(*runs, LoopConfig(progress=False, min_estimation_gain=0.0)).effects == ["compliance"]
+
+
+def test_resolution_bands_place_each_contact_by_its_widest_block_and_each_delay_by_log_samples(tmp_path, capsys):
+    """The resolution report (information beside the targets): a contact's widest break
+    displacement in encoder steps, whatever model carries it, and a delay in log samples."""
+    import json
+    import math
+
+    from loop_campaign import resolution
+
+    rig = {"Fc": 4.0, "M": 2.0, "quant": 1e-6}
+    rng = np.random.default_rng(3)
+    for model in ("maxwell", "gms"):
+        c = campaign_cases.contact(rig, rng, model, 2e-6)
+        brk = [w / k for k, w in zip(c["k"], c.get("w", [rig["Fc"] * a for a in c.get("alpha", [])]))]
+        assert math.isclose(resolution.widest_break(c), max(brk), rel_tol=1e-12)
+        assert 2e-6 * 3.0 * 0.7 <= resolution.widest_break(c) <= 2e-6 * 3.0 * 1.4  # the widest of the three blocks
+    assert math.isclose(resolution.widest_break(campaign_cases.contact(rig, rng, "lugre", 2e-6)), 2e-6)
+    assert resolution.widest_break({"model": "karnopp"}) is None
+
+    maxwell = {"model": "maxwell", "k": [4.0 / 2.5e-6], "w": [4.0]}  # 2.5 steps wide
+    specs = [{"id": "p", "rig": dict(rig, contact=maxwell), "effects": [{"name": "presliding_hysteresis"}]},
+             {"id": "d", "rig": dict(rig, contact={"model": "karnopp"}), "effects": [{"name": "input_delay", "tau": 0.0015}]},
+             {"id": "x", "rig": dict(rig, contact={"model": "karnopp"}), "effects": [{"name": "offset"}]}]
+    results = [{"id": "p", "status": "ok", "accepted": [], "truth": {"fs": 1000.0, "effects": {
+                    "presliding_hysteresis": {"detectable": True, "detectable_beyond_null": False}}}},
+               {"id": "d", "status": "ok", "accepted": ["input_delay"], "truth": {"fs": 1000.0, "effects": {
+                    "input_delay": {"detectable": True, "detectable_beyond_null": True}}}},
+               {"id": "x", "status": "ok", "accepted": ["offset"], "truth": {"fs": 1000.0, "effects": {"offset": {"detectable": True}}}}]
+    (tmp_path / "cases.json").write_text(json.dumps(specs))
+    (tmp_path / "results.json").write_text(json.dumps({"cases": results}))
+    found = resolution.rows([tmp_path])
+    name = tmp_path.name
+    assert found == [(f"{name}/p", "presliding_hysteresis", "1-3 steps", True, False, False),
+                     (f"{name}/d", "input_delay", "1-2 samples", True, True, True)]
+    assert resolution.main([str(tmp_path / "missing")]) == 2 and "no results.json" in capsys.readouterr().err
