@@ -1086,12 +1086,14 @@ def test_resolution_bands_place_each_contact_by_its_widest_block_and_each_delay_
     maxwell = {"model": "maxwell", "k": [4.0 / 2.5e-6], "w": [4.0]}  # 2.5 steps wide
     specs = [{"id": "p", "rig": dict(rig, contact=maxwell), "effects": [{"name": "presliding_hysteresis"}]},
              {"id": "d", "rig": dict(rig, contact={"model": "karnopp"}), "effects": [{"name": "input_delay", "tau": 0.0015}]},
-             {"id": "x", "rig": dict(rig, contact={"model": "karnopp"}), "effects": [{"name": "offset"}]}]
+             {"id": "x", "rig": dict(rig, contact={"model": "karnopp"}), "effects": [{"name": "offset"}]},
+             {"id": "e", "effects": [{"name": "presliding_hysteresis"}]}]  # real runs: no contact known
     results = [{"id": "p", "status": "ok", "accepted": [], "truth": {"fs": 1000.0, "effects": {
                     "presliding_hysteresis": {"detectable": True, "detectable_beyond_null": False}}}},
                {"id": "d", "status": "ok", "accepted": ["input_delay"], "truth": {"fs": 1000.0, "effects": {
                     "input_delay": {"detectable": True, "detectable_beyond_null": True}}}},
-               {"id": "x", "status": "ok", "accepted": ["offset"], "truth": {"fs": 1000.0, "effects": {"offset": {"detectable": True}}}}]
+               {"id": "x", "status": "ok", "accepted": ["offset"], "truth": {"fs": 1000.0, "effects": {"offset": {"detectable": True}}}},
+               {"id": "e", "status": "ok", "accepted": [], "truth": {"fs": 1000.0, "effects": {"presliding_hysteresis": {"detectable": True}}}}]
     (tmp_path / "cases.json").write_text(json.dumps(specs))
     (tmp_path / "results.json").write_text(json.dumps({"cases": results}))
     found = resolution.rows([tmp_path])

@@ -60,7 +60,7 @@ def rows(dirs: list[Path]) -> list[tuple[str, str, str, bool, bool, bool]]:
                 if t is None:
                     continue
                 if e["name"] == "presliding_hysteresis":
-                    brk = widest_break(spec["rig"]["contact"])
+                    brk = widest_break(spec["rig"]["contact"]) if "rig" in spec else None  # a real run's contact is unknown
                     if brk is None:
                         continue
                     where = band(brk / spec["rig"]["quant"], STEP_BANDS) + " steps"
