@@ -1089,7 +1089,7 @@ def test_resolution_bands_place_each_contact_by_its_widest_block_and_each_delay_
              {"id": "x", "rig": dict(rig, contact={"model": "karnopp"}), "effects": [{"name": "offset"}]},
              {"id": "e", "effects": [{"name": "presliding_hysteresis"}]}]  # real runs: no contact known
     results = [{"id": "p", "status": "ok", "accepted": [], "truth": {"fs": 1000.0, "effects": {
-                    "presliding_hysteresis": {"detectable": True, "detectable_beyond_null": False}}}},
+                    "presliding_hysteresis": {"detectable": True, "detectable_moving": True, "detectable_beyond_null": False}}}},
                {"id": "d", "status": "ok", "accepted": ["input_delay"], "truth": {"fs": 1000.0, "effects": {
                     "input_delay": {"detectable": True, "detectable_beyond_null": True}}}},
                {"id": "x", "status": "ok", "accepted": ["offset"], "truth": {"fs": 1000.0, "effects": {"offset": {"detectable": True}}}},
@@ -1098,6 +1098,6 @@ def test_resolution_bands_place_each_contact_by_its_widest_block_and_each_delay_
     (tmp_path / "results.json").write_text(json.dumps({"cases": results}))
     found = resolution.rows([tmp_path])
     name = tmp_path.name
-    assert found == [(f"{name}/p", "presliding_hysteresis", "1-3 steps", True, False, False),
-                     (f"{name}/d", "input_delay", "1-2 samples", True, True, True)]
+    assert found == [(f"{name}/p", "presliding_hysteresis", "1-3 steps", True, True, False, False),
+                     (f"{name}/d", "input_delay", "1-2 samples", True, False, True, True)]
     assert resolution.main([str(tmp_path / "missing")]) == 2 and "no results.json" in capsys.readouterr().err

@@ -6,7 +6,7 @@ Pre-sliding lives within the contact's elastic range and an input delay within t
 force lags the motion; the data resolve neither below their own grain: the encoder step (the
 position the blocks are driven by) and the log's sample period (the timing the loop's alignment
 absorbs, the logger's own skew included).  For every case planting one of the two, with the
-truth's verdict (``detectable``, ``detectable_beyond_null``) and whether the loop named it, this
+truth's verdicts (``detectable``, ``detectable_moving``, ``detectable_beyond_null``) and whether the loop named it, this
 prints the recall per band of that grain: the contact's widest break displacement in encoder
 steps, the delay in log samples.  Information only: the campaign's targets are scored as
 ``score.py`` scores them.
@@ -46,8 +46,12 @@ def band(x: float, edges: tuple[float, ...]) -> str:
     return f">= {lo:g}"
 
 
-def rows(dirs: list[Path]) -> list[tuple[str, str, str, bool, bool, bool]]:
-    """``(case, effect, band, detectable, detectable beyond the null, named)`` per planted case."""
+Row = tuple[str, str, str, bool, bool, bool, bool]
+
+
+def rows(dirs: list[Path]) -> list[Row]:
+    """``(case, effect, band, detectable, detectable on the moving rows, detectable beyond the
+    null, named)`` per planted case."""
     out = []
     for d in dirs:
         specs = {c["id"]: c for c in json.loads((d / "cases.json").read_text())}
@@ -68,8 +72,8 @@ def rows(dirs: list[Path]) -> list[tuple[str, str, str, bool, bool, bool]]:
                     where = band(e["tau"] * r["truth"]["fs"], SAMPLE_BANDS) + " samples"
                 else:
                     continue
-                out.append((f"{d.name}/{r['id']}", e["name"], where, bool(t["detectable"]), bool(t.get("detectable_beyond_null")),
-                            e["name"] in r["accepted"]))
+                out.append((f"{d.name}/{r['id']}", e["name"], where, bool(t["detectable"]), bool(t.get("detectable_moving")),
+                            bool(t.get("detectable_beyond_null")), e["name"] in r["accepted"]))
     return out
 
 
@@ -77,14 +81,15 @@ def _rate(xs: list[bool]) -> str:
     return f"{sum(xs)}/{len(xs)}" if xs else "-"
 
 
-def report(found: list[tuple[str, str, str, bool, bool, bool]]) -> str:
-    lines = [f"{'effect':24s} {'band':16s} {'planted':>8s} {'detectable: named':>18s} {'beyond null: named':>19s}"]
+def report(found: list[Row]) -> str:
+    lines = [f"{'effect':24s} {'band':16s} {'planted':>8s} {'detectable: named':>18s} {'moving: named':>14s} {'beyond null: named':>19s}"]
     for name in ("presliding_hysteresis", "input_delay"):
         bands = sorted({b for _, n, b, *_ in found if n == name}, key=lambda b: float(b.split()[-2].split("-")[0]))
         for b in bands:
             sel = [x for x in found if x[1] == name and x[2] == b]
-            lines.append(f"{name:24s} {b:16s} {len(sel):8d} {_rate([x[5] for x in sel if x[3]]):>18s} "
-                         f"{_rate([x[5] for x in sel if x[4]]):>19s}")
+            named = [x[6] for x in sel]
+            lines.append(f"{name:24s} {b:16s} {len(sel):8d} " + " ".join(
+                f"{_rate([n for n, x in zip(named, sel) if x[k]]):>{w}s}" for k, w in ((3, 18), (4, 14), (5, 19))))
     return "\n".join(lines)
 
 
