@@ -6,6 +6,7 @@ the clean runs end with nothing, and the jittered log runs end to end."""
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -456,13 +457,37 @@ def test_an_asymmetry_of_viscous_friction_leaves_the_coulomb_level_alone(monkeyp
     p = res.final.params()
     assert p["Fc"]["value"] == pytest.approx(case["rig"]["Fc"], rel=0.3)
     assert p["dFv_asym"]["value"] == pytest.approx(case["effects"][0]["dFv"], rel=0.2)
+    # projected with the friction and held to the level's guard, it would look like friction
+    # explained away
     monkeypatch.setattr(select, "FRICTION_TERMS", select.FRICTION_TERMS | {"asymmetric_friction"})
+    monkeypatch.setitem(select.CATALOGUE, "asymmetric_friction", replace(select.CATALOGUE["asymmetric_friction"], even_in_speed=False))
     res = run_loop(*runs, cfg)
     assert res.effects == []
     assert any("effective Coulomb level" in s.reason for s in res.steps if s.effect == "asymmetric_friction")
     # refused by the guard alone, every test of the data passed: the result says so
     held = [d for d in res.diagnostics if d["code"] == "held_back"]
     assert [d["parameter"] for d in held] == ["asymmetric_friction"] and "Coulomb level" in held[0]["message"]
+
+
+def test_an_asymmetry_that_gives_back_the_level_the_baseline_took_is_named():
+    """A strong viscous asymmetry on a run that moves faster one way (the campaign's seed 129,
+    planted with a position friction): the baseline takes the asymmetry's share into its Coulomb
+    level, more than twice the rig's, and an offset.  The asymmetry brings the level back to the
+    rig's; a force even in the speed is not held to the level's fall."""
+    from gmsfric.loop import LoopConfig, run_loop
+
+    case_id = "pair-190-position_dependent_friction+asymmetric_friction"
+    runs = _campaign_runs(129, case_id)
+    case = next(c for c in campaign_cases.make_cases(129, emps=False) if c["id"] == case_id)
+    res = run_loop(*runs, LoopConfig(progress=False, effects=("asymmetric_friction",)))
+    assert res.baseline.params()["Fc"]["value"] > 2.0 * case["rig"]["Fc"]
+    assert res.effects == ["asymmetric_friction"]
+    p = res.final.params()
+    assert p["Fc"]["value"] == pytest.approx(case["rig"]["Fc"], rel=0.2)
+    dfv = next(e["dFv"] for e in case["effects"] if e["name"] == "asymmetric_friction")
+    assert p["dFv_asym"]["value"] == pytest.approx(dfv, rel=0.1)
+    step = next(s for s in res.steps if s.accepted)
+    assert step.evidence["baseline_parameters"]["Fc"]["ratio"] < 0.5
 
 
 def test_a_confounded_pair_is_chosen_again_together(monkeypatch):

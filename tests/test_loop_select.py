@@ -549,6 +549,11 @@ def test_the_coulomb_guard_refuses_a_fall_of_a_physical_baselines_level(monkeypa
     assert why is not None and "Coulomb level" in why and "below 1/2" in why
     monkeypatch.setattr(select, "baseline_physics", lambda m, split: {"M": 0.0135, "Fv": 0.032, "Fc": 0.7})
     assert select._plausibility(base, std, None, None, LoopConfig())[1] is None
+    # an effect even in the speed may lower the level; the mass and viscous coefficient stay checked
+    monkeypatch.setattr(select, "baseline_physics", lambda m, split: {"M": 0.0135, "Fv": 0.032, "Fc": 0.1466})
+    assert select._plausibility(base, std, None, None, LoopConfig(), level_checked=False)[1] is None
+    monkeypatch.setattr(select, "baseline_physics", lambda m, split: {"M": 0.0135, "Fv": -0.05, "Fc": 0.1466})
+    assert "viscous coefficient" in select._plausibility(base, std, None, None, LoopConfig(), level_checked=False)[1]
 
 
 @pytest.mark.parametrize(

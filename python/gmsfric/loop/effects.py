@@ -241,6 +241,13 @@ class Effect:
         audit's rig: cross-validated error 0.61 of the baseline's for the probe against 0.83 for
         the planted resonance on all rows, 0.13 for the planted one clear of reversals).  Chosen
         there first, a resonance on a slow random run with few clear rows was lost to a probe.
+    even_in_speed : bool
+        The effect's force is the same in both directions at the same speed (a viscous friction
+        that differs between the directions, a constant force).  Projected on ``sign(qd)`` such a
+        force reflects only how differently the run moves the two ways, and a baseline without it
+        takes that share into its Coulomb level: when it enters and the level falls, the
+        baseline gives back what it absorbed, and the plausibility guard does not hold the fall
+        against it (its mass and viscous coefficient stay checked).
     """
 
     name: str
@@ -259,6 +266,7 @@ class Effect:
     creeping: bool = False
     acts_over_time: bool = False
     chosen_clear_of_reversals: bool = False
+    even_in_speed: bool = False
     rivals: Callable[[LinearModel, LinearModel, Signals, Array], list[tuple[LinearModel, str]]] | None = None
 
     def check(self, model: LinearModel, s: Signals) -> str | None:
@@ -883,7 +891,7 @@ def detection_limits(s: Signals, rotary: bool = False) -> dict[str, dict[str, fl
 CATALOGUE: dict[str, Effect] = {
     e.name: e
     for e in (
-        Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric),
+        Effect("asymmetric_friction", "friction differs between the two directions of motion", "velocity", _asymmetric, even_in_speed=True),
         Effect("stribeck", "friction changes from its level at rest to its sliding level at low speed (Stribeck curve)", "velocity", _stribeck, _stribeck_ok,
                probe=lambda p, s: p["vs"]["value"] > s.v_scale, clear_of_reversals=_stribeck_dip, contested=_contested_hump,
                refine=stribeck_bounds),
@@ -900,7 +908,7 @@ CATALOGUE: dict[str, Effect] = {
                refine=lambda s: [(1.0, resonance_limit(s)), (min(COMPLIANCE_PROBE_ZETAS), max(COMPLIANCE_PROBE_ZETAS))], whole_motion=True,
                probe=lambda p, s: not COMPLIANCE_MIN_ZETA <= p["zeta"]["value"] <= COMPLIANCE_MAX_ZETA, consistency_only=True,
                chosen_clear_of_reversals=True, rivals=tone_rivals),
-        Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset),
+        Effect("offset", "a constant force (drive offset, gravity)", "mean", _offset, even_in_speed=True),
     )
 }
 

@@ -491,7 +491,8 @@ def baseline_physics(m: LinearModel, split: Split) -> dict[str, float]:
     return out
 
 
-def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: LinearModel, split: Split, cfg: LoopConfig) -> tuple[dict[str, Any], str | None]:
+def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: LinearModel, split: Split, cfg: LoopConfig,
+                  level_checked: bool = True) -> tuple[dict[str, Any], str | None]:
     """Baseline parameters before (the baseline's) and with this step, and why they are
     implausible (``None`` when they are not).
 
@@ -510,7 +511,10 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
     own mass or viscous coefficient is unphysical has absorbed a missing effect, and its level is
     no reference: a step that makes both physical may lower the level, not below 3 of its standard
     errors (a rotary joint's gravity the baseline took into twice the Coulomb level and a
-    negative viscous coefficient)."""
+    negative viscous coefficient).  ``level_checked=False`` for a step whose entering effects are
+    all even in the speed (``Effect.even_in_speed``): a fall of the level is then the baseline's
+    share of that force given back (a viscous asymmetry on a run that moves faster one way took
+    the level from the rig's 3.2 N to 7.5 N)."""
     now = baseline_physics(m, split)
     checked = [k for k in ("M", "Fv") if k in base_phys]
     mends = (any(base_phys[k] < -3.0 * base_std.get(k, 0.0) for k in checked)
@@ -528,7 +532,8 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
             why = f"implausible baseline: the mass becomes {a:.4g} (negative)"
         elif k == "Fv" and a < -3.0 * sd and a < b:
             why = f"implausible baseline: the viscous coefficient becomes {a:.4g} (negative)"
-        elif k == "Fc" and b > 3.0 * sd and np.isfinite(ratio) and ratio < 1.0 / cfg.max_parameter_ratio and not (mends and a > 3.0 * sd):
+        elif (k == "Fc" and level_checked and b > 3.0 * sd and np.isfinite(ratio) and ratio < 1.0 / cfg.max_parameter_ratio
+              and not (mends and a > 3.0 * sd)):
             why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, below 1/{cfg.max_parameter_ratio:g} of the baseline's)"
     return report, why
 
@@ -905,7 +910,7 @@ def stage_select(st: _State, cfg: LoopConfig, names: list[str]) -> None:
                     f = fnd.get(eff.evidence)
                     ev0: dict[str, Any] = {"residual_test": f.as_dict()} if f is not None else {}
                     st.steps.append(Step(rnd, eff.name, False, f"no physically valid fit ({why})", ev0, float("nan"), float("nan"), {}))
-            screened = sum(_screened(creep if eff.creeping else st, cfg, m, nulls[eff.name], gain_cv) for gain_cv, eff, m in cands)
+            screened = sum(_screened(creep if eff.creeping else st, cfg, eff, m, nulls[eff.name], gain_cv) for gain_cv, eff, m in cands)
             level = cfg.level(rnd, screened)
             passing: list[tuple[float, Step, LinearModel]] = []
             for gain_cv, eff, m in sorted(cands, key=lambda c: -c[0]):
@@ -960,12 +965,13 @@ def _delta_bic(m: LinearModel, null: LinearModel, split: Split) -> float:
     return float(n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est))
 
 
-def _screened(st: _State, cfg: LoopConfig, m: LinearModel, null: LinearModel, gain_cv: float) -> bool:
-    """Whether a candidate ``m`` (tested against fitted ``null``) passes every check made on the
-    estimation run alone: a cross-validated gain (``min_estimation_gain``), a lower BIC and a
-    plausible baseline.  Only those candidates can enter, so only they share a round's level."""
+def _screened(st: _State, cfg: LoopConfig, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float) -> bool:
+    """Whether a candidate ``m`` of ``eff`` (tested against fitted ``null``) passes every check
+    made on the estimation run alone: a cross-validated gain (``min_estimation_gain``), a lower BIC
+    and a plausible baseline.  Only those candidates can enter, so only they share a round's level."""
     _fit(m, st.split)
-    return cfg.gains_on_estimation(gain_cv) and _delta_bic(m, null, st.split) < 0 and _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)[1] is None
+    return (cfg.gains_on_estimation(gain_cv) and _delta_bic(m, null, st.split) < 0
+            and _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg, level_checked=not eff.even_in_speed)[1] is None)
 
 
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
@@ -983,7 +989,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
     h_far = heldout_clear(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
     dbic = _delta_bic(m, null, split)
-    change, implausible = _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg)
+    change, implausible = _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg, level_checked=not eff.even_in_speed)
     ev: dict[str, Any] = {}
     f = fnd.get(eff.evidence)
     if f is not None:
@@ -1091,7 +1097,7 @@ def _exchange_step(st: _State, cfg: LoopConfig, rnd: int, names: Sequence[str], 
                 continue
             m, null, gain_cv = _candidate(m, name, list(base.effects), se, cfg)
             trials.append((out, eff, m, null, gain_cv))
-    screened = sum(_screened(creep if eff.creeping else st, cfg, m, null, gain_cv) for _, eff, m, null, gain_cv in trials)
+    screened = sum(_screened(creep if eff.creeping else st, cfg, eff, m, null, gain_cv) for _, eff, m, null, gain_cv in trials)
     level = cfg.level(rnd, screened)
     best: tuple[float, Step, LinearModel, str] | None = None
     for out, eff, m, null, gain_cv in trials:
@@ -1284,7 +1290,8 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
         except (IdentificationError, np.linalg.LinAlgError, ValueError):
             continue
         dbic = _delta_bic(both, ps.model, split)
-        change, implausible = _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg)
+        change, implausible = _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg,
+                                            level_checked=not (ea.even_in_speed and eb.even_in_speed))
         if dbic >= 0 or implausible is not None:
             continue
         shared += 1
