@@ -492,7 +492,7 @@ def baseline_physics(m: LinearModel, split: Split) -> dict[str, float]:
 
 
 def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: LinearModel, split: Split, cfg: LoopConfig,
-                  level_checked: bool = True) -> tuple[dict[str, Any], str | None]:
+                  level_checked: bool = True, level_reference: float | None = None) -> tuple[dict[str, Any], str | None]:
     """Baseline parameters before (the baseline's) and with this step, and why they are
     implausible (``None`` when they are not).
 
@@ -514,7 +514,8 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
     negative viscous coefficient).  ``level_checked=False`` for a step whose entering effects are
     all even in the speed (``Effect.even_in_speed``): a fall of the level is then the baseline's
     share of that force given back (a viscous asymmetry on a run that moves faster one way took
-    the level from the rig's 3.2 N to 7.5 N)."""
+    the level from the rig's 3.2 N to 7.5 N).  Once such an effect is in the model, the level it
+    left (``level_reference``, :func:`_level_reference`) is what later steps may not halve."""
     now = baseline_physics(m, split)
     checked = [k for k in ("M", "Fv") if k in base_phys]
     mends = (any(base_phys[k] < -3.0 * base_std.get(k, 0.0) for k in checked)
@@ -532,9 +533,12 @@ def _plausibility(base_phys: dict[str, float], base_std: dict[str, float], m: Li
             why = f"implausible baseline: the mass becomes {a:.4g} (negative)"
         elif k == "Fv" and a < -3.0 * sd and a < b:
             why = f"implausible baseline: the viscous coefficient becomes {a:.4g} (negative)"
-        elif (k == "Fc" and level_checked and b > 3.0 * sd and np.isfinite(ratio) and ratio < 1.0 / cfg.max_parameter_ratio
-              and not (mends and a > 3.0 * sd)):
-            why = f"implausible baseline: the effective Coulomb level {b:.4g} -> {a:.4g} (x{ratio:.2f}, below 1/{cfg.max_parameter_ratio:g} of the baseline's)"
+        elif k == "Fc" and level_checked:
+            ref = b if level_reference is None else level_reference
+            fall = a / ref if ref else float("nan")
+            if ref > 3.0 * sd and np.isfinite(fall) and fall < 1.0 / cfg.max_parameter_ratio and not (mends and a > 3.0 * sd):
+                whose = "the baseline's" if level_reference is None else "the level the model's even-in-speed effects left"
+                why = f"implausible baseline: the effective Coulomb level {ref:.4g} -> {a:.4g} (x{fall:.2f}, below 1/{cfg.max_parameter_ratio:g} of {whose})"
     return report, why
 
 
@@ -965,13 +969,23 @@ def _delta_bic(m: LinearModel, null: LinearModel, split: Split) -> float:
     return float(n_est * np.log(_sse(m, split) / _sse(null, split)) + (m.n_params - null.n_params) * np.log(n_est))
 
 
+def _level_reference(st: _State) -> float | None:
+    """The Coulomb level a step may not halve when the current model holds an effect even in the
+    speed: the lower of the baseline's and the current model's (that effect gave back what the
+    baseline had taken into its level); ``None`` (the baseline's) otherwise."""
+    if "Fc" not in st.base_phys or not any(e in CATALOGUE and CATALOGUE[e].even_in_speed for e in st.model.effects):
+        return None
+    now = baseline_physics(st.model, st.moving_split).get("Fc", float("nan"))
+    return min(st.base_phys["Fc"], now) if np.isfinite(now) else None
+
+
 def _screened(st: _State, cfg: LoopConfig, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float) -> bool:
     """Whether a candidate ``m`` of ``eff`` (tested against fitted ``null``) passes every check
     made on the estimation run alone: a cross-validated gain (``min_estimation_gain``), a lower BIC
     and a plausible baseline.  Only those candidates can enter, so only they share a round's level."""
     _fit(m, st.split)
     return (cfg.gains_on_estimation(gain_cv) and _delta_bic(m, null, st.split) < 0
-            and _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg, level_checked=not eff.even_in_speed)[1] is None)
+            and _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg, not eff.even_in_speed, _level_reference(st))[1] is None)
 
 
 def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: LinearModel, null: LinearModel, gain_cv: float,
@@ -989,7 +1003,7 @@ def _test_candidate(st: _State, cfg: LoopConfig, rnd: int, eff: Effect, m: Linea
     far_level = eff.level_clear_of_reversals(m, level, cfg.alpha)
     h_far = heldout_clear(split, null, m, st.chunk, far, eff.refit_clear_of_reversals) if far_level is not None else None
     dbic = _delta_bic(m, null, split)
-    change, implausible = _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg, level_checked=not eff.even_in_speed)
+    change, implausible = _plausibility(st.base_phys, st.base_std, m, st.moving_split, cfg, not eff.even_in_speed, _level_reference(st))
     ev: dict[str, Any] = {}
     f = fnd.get(eff.evidence)
     if f is not None:
@@ -1291,7 +1305,7 @@ def _pair_step(st: _State, cfg: LoopConfig, rnd: int, cands: list[tuple[float, E
             continue
         dbic = _delta_bic(both, ps.model, split)
         change, implausible = _plausibility(st.base_phys, st.base_std, both, st.moving_split, cfg,
-                                            level_checked=not (ea.even_in_speed and eb.even_in_speed))
+                                            not (ea.even_in_speed and eb.even_in_speed), _level_reference(st))
         if dbic >= 0 or implausible is not None:
             continue
         shared += 1
