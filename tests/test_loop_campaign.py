@@ -1128,3 +1128,4 @@ def test_resolution_bands_place_each_contact_by_its_widest_block_and_each_delay_
     assert found == [(f"{name}/p", "presliding_hysteresis", "1-3 steps", True, True, False, False),
                      (f"{name}/d", "input_delay", "1-2 samples", True, False, True, True)]
     assert resolution.main([str(tmp_path / "missing")]) == 2 and "no results.json" in capsys.readouterr().err
+    assert resolution.main([str(tmp_path), str(tmp_path)]) == 2 and "named twice" in capsys.readouterr().err

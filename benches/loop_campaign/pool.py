@@ -32,6 +32,12 @@ if __package__ in (None, ""):  # run as a script: make the package importable
 from .score import TARGETS, format_report, summarize  # noqa: E402
 
 
+def named_twice(dirs: list[Path]) -> bool:
+    """Whether a draw is named twice: the same directory, or two with the same name (case ids are
+    prefixed with it)."""
+    return len({d.resolve() for d in dirs}) < len(dirs) or len({d.name for d in dirs}) < len(dirs)
+
+
 def load(dirs: list[Path]) -> list[tuple[str, list[dict[str, Any]]]]:
     """``(label, results)`` per finished campaign directory, ids prefixed with the label; each
     result carries its case's ``experiment`` (:func:`experiment`) when ``cases.json`` is there."""
@@ -137,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     for d in args.dirs:
         if not (d / "results.json").is_file():
             p.error(f"{d}: no results.json (not a finished campaign)")
-    if len({d.resolve() for d in args.dirs}) < len(args.dirs) or len({d.name for d in args.dirs}) < len(args.dirs):
+    if named_twice(args.dirs):
         p.error("a draw is named twice (the same directory, or two with the same name): pooled twice, its cases would narrow the intervals")
     draws = load(args.dirs)
     for label, results in draws:

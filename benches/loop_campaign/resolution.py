@@ -8,8 +8,9 @@ position the blocks are driven by) and the log's sample period (the timing the l
 absorbs, the logger's own skew included).  For every case planting one of the two, with the
 truth's verdicts (``detectable``, ``detectable_moving``, ``detectable_beyond_null``) and whether the loop named it, this
 prints the recall per band of that grain: the contact's widest break displacement in encoder
-steps, the delay in log samples.  Information only: the campaign's targets are scored as
-``score.py`` scores them.
+steps, the delay in log samples.  A real-data experiment that several draws repeat counts once,
+as ``pool.py`` pools it.  Information only: the campaign's targets are scored as ``score.py``
+scores them.
 """
 
 from __future__ import annotations
@@ -19,6 +20,12 @@ import json
 import sys
 from pathlib import Path
 from typing import Any
+
+if __package__ in (None, ""):  # run as a script: make the package importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    __package__ = "loop_campaign"
+
+from .pool import distinct, load, named_twice  # noqa: E402
 
 #: Band edges: encoder steps for the widest block of a contact, log samples for a delay.
 STEP_BANDS = (1.0, 3.0, 10.0)
@@ -52,28 +59,27 @@ Row = tuple[str, str, str, bool, bool, bool, bool]
 def rows(dirs: list[Path]) -> list[Row]:
     """``(case, effect, band, detectable, detectable on the moving rows, detectable beyond the
     null, named)`` per planted case."""
+    specs = {f"{d.name}/{c['id']}": c for d in dirs for c in json.loads((d / "cases.json").read_text())}
     out = []
-    for d in dirs:
-        specs = {c["id"]: c for c in json.loads((d / "cases.json").read_text())}
-        for r in json.loads((d / "results.json").read_text())["cases"]:
-            spec, truth = specs.get(r["id"]), r.get("truth", {}).get("effects", {})
-            if r["status"] != "ok" or spec is None:
+    for r in distinct(load(dirs))[0]:
+        spec, truth = specs.get(r["id"]), r.get("truth", {}).get("effects", {})
+        if r["status"] != "ok" or spec is None:
+            continue
+        for e in spec["effects"]:
+            t = truth.get(e["name"])
+            if t is None:
                 continue
-            for e in spec["effects"]:
-                t = truth.get(e["name"])
-                if t is None:
+            if e["name"] == "presliding_hysteresis":
+                brk = widest_break(spec["rig"]["contact"]) if "rig" in spec else None  # a real run's contact is unknown
+                if brk is None:
                     continue
-                if e["name"] == "presliding_hysteresis":
-                    brk = widest_break(spec["rig"]["contact"]) if "rig" in spec else None  # a real run's contact is unknown
-                    if brk is None:
-                        continue
-                    where = band(brk / spec["rig"]["quant"], STEP_BANDS) + " steps"
-                elif e["name"] == "input_delay":
-                    where = band(e["tau"] * r["truth"]["fs"], SAMPLE_BANDS) + " samples"
-                else:
-                    continue
-                out.append((f"{d.name}/{r['id']}", e["name"], where, bool(t["detectable"]), bool(t.get("detectable_moving")),
-                            bool(t.get("detectable_beyond_null")), e["name"] in r["accepted"]))
+                where = band(brk / spec["rig"]["quant"], STEP_BANDS) + " steps"
+            elif e["name"] == "input_delay":
+                where = band(e["tau"] * r["truth"]["fs"], SAMPLE_BANDS) + " samples"
+            else:
+                continue
+            out.append((r["id"], e["name"], where, bool(t["detectable"]), bool(t.get("detectable_moving")),
+                        bool(t.get("detectable_beyond_null")), e["name"] in r["accepted"]))
     return out
 
 
@@ -100,6 +106,10 @@ def main(argv: list[str] | None = None) -> int:
     missing = [str(d) for d in a.dirs if not (d / "results.json").is_file() or not (d / "cases.json").is_file()]
     if missing:
         print(f"resolution: no results.json and cases.json in {', '.join(missing)}", file=sys.stderr)
+        return 2
+    if named_twice(a.dirs):
+        print("resolution: a draw is named twice (the same directory, or two with the same name): its cases would count twice",
+              file=sys.stderr)
         return 2
     print(report(rows(a.dirs)))
     return 0
