@@ -1129,3 +1129,5 @@ def test_resolution_bands_place_each_contact_by_its_widest_block_and_each_delay_
                      (f"{name}/d", "input_delay", "1-2 samples", True, False, True, True)]
     assert resolution.main([str(tmp_path / "missing")]) == 2 and "no results.json" in capsys.readouterr().err
     assert resolution.main([str(tmp_path), str(tmp_path)]) == 2 and "named twice" in capsys.readouterr().err
+    (tmp_path / "cases.json").write_text("not json")
+    assert resolution.main([str(tmp_path)]) == 2 and "not the files of a finished campaign" in capsys.readouterr().err

@@ -38,14 +38,29 @@ def named_twice(dirs: list[Path]) -> bool:
     return len({d.resolve() for d in dirs}) < len(dirs) or len({d.name for d in dirs}) < len(dirs)
 
 
-def load(dirs: list[Path]) -> list[tuple[str, list[dict[str, Any]]]]:
-    """``(label, results)`` per finished campaign directory, ids prefixed with the label; each
-    result carries its case's ``experiment`` (:func:`experiment`) when ``cases.json`` is there."""
-    out = []
-    for d in dirs:
+class UnreadableDraw(ValueError):
+    """A campaign directory whose ``results.json`` or ``cases.json`` cannot be read as ``run.py``
+    writes them."""
+
+
+def read_draw(d: Path) -> tuple[list[dict[str, Any]], dict[str, dict[str, Any]]]:
+    """A finished campaign's results and its case specs by id (none without ``cases.json``)."""
+    try:
         results = json.loads((d / "results.json").read_text())["cases"]
         specs = {c["id"]: c for c in json.loads((d / "cases.json").read_text())} if (d / "cases.json").is_file() else {}
-        out.append((d.name, [dict(r, id=f"{d.name}/{r['id']}", experiment=experiment(specs.get(r["id"]))) for r in results]))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise UnreadableDraw(f"{d}: not the files of a finished campaign ({type(exc).__name__}: {exc})") from None
+    return results, specs
+
+
+def load(dirs: list[Path]) -> list[tuple[str, list[dict[str, Any]]]]:
+    """``(label, results)`` per finished campaign directory, ids prefixed with the label; each
+    result carries its case's ``spec`` and ``experiment`` (:func:`experiment`) when ``cases.json``
+    is there."""
+    out = []
+    for d in dirs:
+        results, specs = read_draw(d)
+        out.append((d.name, [dict(r, id=f"{d.name}/{r['id']}", spec=specs.get(r["id"]), experiment=experiment(specs.get(r["id"]))) for r in results]))
     return out
 
 
@@ -145,7 +160,10 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"{d}: no results.json (not a finished campaign)")
     if named_twice(args.dirs):
         p.error("a draw is named twice (the same directory, or two with the same name): pooled twice, its cases would narrow the intervals")
-    draws = load(args.dirs)
+    try:
+        draws = load(args.dirs)
+    except UnreadableDraw as exc:
+        p.error(str(exc))
     for label, results in draws:
         if not any(r["status"] == "ok" for r in results):
             p.error(f"{label}: no completed case to pool")

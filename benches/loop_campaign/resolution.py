@@ -16,7 +16,6 @@ scores them.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -25,7 +24,7 @@ if __package__ in (None, ""):  # run as a script: make the package importable
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     __package__ = "loop_campaign"
 
-from .pool import distinct, load, named_twice  # noqa: E402
+from .pool import UnreadableDraw, distinct, load, named_twice  # noqa: E402
 
 #: Band edges: encoder steps for the widest block of a contact, log samples for a delay.
 STEP_BANDS = (1.0, 3.0, 10.0)
@@ -59,10 +58,9 @@ Row = tuple[str, str, str, bool, bool, bool, bool]
 def rows(dirs: list[Path]) -> list[Row]:
     """``(case, effect, band, detectable, detectable on the moving rows, detectable beyond the
     null, named)`` per planted case."""
-    specs = {f"{d.name}/{c['id']}": c for d in dirs for c in json.loads((d / "cases.json").read_text())}
     out = []
     for r in distinct(load(dirs))[0]:
-        spec, truth = specs.get(r["id"]), r.get("truth", {}).get("effects", {})
+        spec, truth = r["spec"], r.get("truth", {}).get("effects", {})
         if r["status"] != "ok" or spec is None:
             continue
         for e in spec["effects"]:
@@ -111,7 +109,11 @@ def main(argv: list[str] | None = None) -> int:
         print("resolution: a draw is named twice (the same directory, or two with the same name): its cases would count twice",
               file=sys.stderr)
         return 2
-    print(report(rows(a.dirs)))
+    try:
+        print(report(rows(a.dirs)))
+    except UnreadableDraw as exc:
+        print(f"resolution: {exc}", file=sys.stderr)
+        return 2
     return 0
 
 
