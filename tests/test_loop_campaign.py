@@ -225,7 +225,7 @@ def test_presliding_blocks_are_bounded_by_the_encoder_step_not_the_percentile(mo
     spring, logged at 2 kHz on fast moves: the 1st percentile of the position's changes is four
     steps, and a grid from two of those (715 nm) leaves only the widest block, which the spring's
     model absorbs (campaign seed 109).  Bounded by the step the log rests on, the contact is found
-    beside the spring, its switch half a step wide and a block below the percentile's grid."""
+    beside the spring, its switch one step wide and a block below the percentile's grid."""
     from gmsfric.loop import LoopConfig, Signals, idim, run_loop
 
     runs = _campaign_runs(109, "pair-195-compliance+presliding_hysteresis")
@@ -236,7 +236,7 @@ def test_presliding_blocks_are_bounded_by_the_encoder_step_not_the_percentile(mo
     assert sorted(res.effects) == ["compliance", "presliding_hysteresis"]
     step = next(st for st in res.steps if st.effect == "presliding_hysteresis" and st.accepted)
     deltas = {k: v["value"] for k, v in step.parameters.items() if k.startswith("Delta")}
-    assert deltas["Delta_switch"] == pytest.approx(0.5 * s.contact_resolution)
+    assert deltas["Delta_switch"] == pytest.approx(s.contact_resolution)
     assert min(v for k, v in deltas.items() if k != "Delta_switch") < 2 * s.resolution
     monkeypatch.setattr(idim, "contact_resolution", lambda raw, filtered, resolution, lattice: resolution)
     assert run_loop(*runs, cfg).effects == ["compliance"]
@@ -245,16 +245,15 @@ def test_presliding_blocks_are_bounded_by_the_encoder_step_not_the_percentile(mo
 def test_presliding_blocks_that_cancel_each_other_are_refused(monkeypatch):
     """A clean Karnopp rig at 500 Hz (campaign seed 31, no pre-sliding): three blocks, one of them
     with a negative break force within two of its standard errors of zero, fitted the reversals
-    with held-out t 3.8 against a switch one encoder step wide.  A negative break force is refused
-    as fitted, and no set of positive blocks gains: nothing is named.  With the two-standard-error
-    rule and that wide switch (on the moving rows, as found) the cancelling blocks pass the test
-    against the switch, and only the second guard refuses them: the whole term predicts the
-    held-out run no better than the model without it.  All of this with the recipe's 50 Hz
-    position filter, under which the blocks were found: the cut-off the loop now chooses on this
-    run (100 Hz) leaves them little to fit."""
+    with held-out t 3.8 against the switch.  A negative break force is refused as fitted, and no
+    set of positive blocks gains: nothing is named.  With the two-standard-error rule the
+    cancelling blocks pass the test against the switch, and only the second guard refuses them:
+    the whole term predicts the held-out run no better than the model without it (on the moving
+    rows, as found).  All of this with the recipe's 50 Hz position filter, under which the blocks were found: the cut-off the
+    loop now chooses on this run (100 Hz) leaves them little to fit."""
     import dataclasses
 
-    from gmsfric.loop import LoopConfig, effects, run_loop
+    from gmsfric.loop import LoopConfig, run_loop
     from gmsfric.loop.effects import CATALOGUE
 
     runs = _campaign_runs(31, "clean-248-clean")
@@ -268,7 +267,6 @@ def test_presliding_blocks_that_cancel_each_other_are_refused(monkeypatch):
 
     eff = CATALOGUE["presliding_hysteresis"]
     monkeypatch.setitem(CATALOGUE, eff.name, dataclasses.replace(eff, physical=within_two_errors))
-    monkeypatch.setattr(effects, "SWITCH_FRACTION", 1.0)
     # on the moving rows alone, as found: with the creeping rows the two-error rule refuses them too
     res = run_loop(*runs, dataclasses.replace(only, creep_fraction=only.rest_fraction))
     assert res.effects == []

@@ -11,7 +11,7 @@ import pytest
 
 from gmsfric.loop.data import AxisData
 from gmsfric.loop import LoopConfig, run_loop
-from gmsfric.loop.effects import (CATALOGUE, COMPLIANCE_GRID_ZETAS, DIP_BLUR_MARGIN, _compliance_variants, _delay, _play, _presliding, _stribeck, _stribeck_ok, switch_width,
+from gmsfric.loop.effects import (CATALOGUE, COMPLIANCE_GRID_ZETAS, DIP_BLUR_MARGIN, _compliance_variants, _delay, _play, _presliding, _stribeck, _stribeck_ok,
                                    detection_limits, dip_resolution, resonance_limit, stribeck_fall, velocity_resolution)
 from gmsfric.loop.rigs import Rig, simulate_rig
 from gmsfric.loop.idim import LinearModel, Signals
@@ -46,30 +46,13 @@ def test_presliding_element_holds_while_the_axis_sticks():
         assert col[-1] == pytest.approx(-col[int(1.5 * FS)]) and abs(col[-1]) == pytest.approx(1.0)
 
 
-def test_switch_turns_fully_at_the_first_step_after_a_reversal():
-    """The switch (pre-sliding's null) is friction that switches where the measured position
-    reverses: at the first encoder step in the new direction its force has turned completely,
-    where an element one step wide has turned only half."""
-    t = np.arange(0.0, 4.0, 1.0 / FS)
-    q = np.round(300 * RES * np.sin(0.5 * np.pi * t) / RES) * RES  # slow: one step at a time
-    s = Signals(AxisData(t, q, np.sign(np.cos(0.5 * np.pi * t)), source="sine"))
-    assert s.contact_resolution == pytest.approx(RES)
-    first = int(np.argmax(q)) + int(np.argmax(q[np.argmax(q):] < q.max()))  # first step back
-    assert q[first] == pytest.approx(q.max() - RES)
-    switch = _play(s, switch_width(s))
-    assert switch[first - 1] == pytest.approx(1.0) and switch[first] == pytest.approx(-1.0)
-    one_step = _play(s, s.contact_resolution)
-    assert one_step[first] == pytest.approx(0.0, abs=1e-9)
-
-
 def test_presliding_grid_starts_at_two_resolution_steps():
     s, _ = _stick_at_reversal()
     variants = _presliding(LinearModel([]), s, np.zeros(s.n_rows))
     assert variants
     terms = [t for m in variants for t in m.terms if t.name == "presliding_hysteresis"]
-    # every variant carries the switch (half a resolution step: it turns fully at the first
-    # step after a reversal; tested as the null) ...
-    assert all(t.hyper_names[0] == "Delta_switch" and t.hyper[0] == pytest.approx(0.5 * s.resolution) for t in terms)
+    # every variant carries the switch (one resolution step, tested as the null) ...
+    assert all(t.hyper_names[0] == "Delta_switch" and t.hyper[0] == s.resolution for t in terms)
     # ... and blocks from two resolution steps of the raw position that drives them
     assert min(min(t.hyper[1:]) for t in terms) == pytest.approx(2 * s.resolution)
     assert max(max(t.hyper[1:]) for t in terms) <= 0.01 * np.ptp(s.q) * (1 + 1e-12)

@@ -17,8 +17,8 @@ effect.  Every run also carries the sampling hold (half a controller period), wh
 includes as physics of the rig, never as an effect.  A third figure (``gain_beyond_null``,
 ``detectable_beyond_null``, moving rows) measures an effect against what the loop tests it
 against: pre-sliding on top of the switch of friction where the measured position reverses (a
-block that turns fully at the first encoder step: every contact does that, and it is a sharper
-Coulomb term than ``sign`` of the filtered velocity), an input delay against the best timing shift within one
+block one position resolution wide: every contact does that, and it is a sharper Coulomb term than
+``sign`` of the filtered velocity), an input delay against the best timing shift within one
 sample (the loop's alignment); for the other effects it equals ``gain_moving``.  Logs with irregular time stamps are
 linearly resampled onto a uniform grid at their median step.
 """
@@ -35,7 +35,6 @@ from scipy import signal
 import gmsfric as g
 from gmsfric.loop import Preprocessing, Signals
 from gmsfric.loop.data import AxisData
-from gmsfric.loop.effects import switch_width
 
 from .rigs import Run, compliance_filter, drift_shape, position_shape, stribeck_shape
 
@@ -106,9 +105,8 @@ def effect_columns(e: dict[str, Any], sig: Signals) -> list[Array]:
 
 def switch_column(sig: Signals) -> Array:
     """Friction of unit level switching where the measured (raw) position reverses: a Maxwell-slip
-    block as wide as the loop's switch (it turns fully at the first encoder step after a
-    reversal), the loop's null for pre-sliding."""
-    return g.simulate_friction(g.MaxwellSlip([1.0 / switch_width(sig)], [1.0]), sig.t, np.asarray(sig.data.position, dtype=float))
+    block one encoder step wide (the loop's contact resolution), the loop's null for pre-sliding."""
+    return g.simulate_friction(g.MaxwellSlip([1.0 / sig.contact_resolution], [1.0]), sig.t, np.asarray(sig.data.position, dtype=float))
 
 
 def contact_model(e: dict[str, Any]) -> Any:

@@ -8,9 +8,8 @@ columns (linear parameters) with, for some, a nonlinear parameter fitted by a gr
                                level at rest ``Fs > 0`` to the sliding level (either way)
 ``presliding_hysteresis``      GMS / Maxwell-slip blocks: elasto-plastic elements of break
                                displacement ``Delta_i`` and break force ``w_i`` (rate-independent
-                               hysteresis after each reversal), with a stiffest element that
-                               turns fully at the first encoder step after a reversal
-                               (``w_switch``), which is not evidence on its own
+                               hysteresis after each reversal), with a stiffest element at the
+                               position resolution (``w_switch``) that is not evidence on its own
 ``position_dependent_friction``  ``sign(qd) g(q)``: the Coulomb level varies along the travel
 ``position_dependent_force``   ``g(q)``, independent of direction: cogging, springs, cables
 ``input_delay``                the force acts ``tau`` after it is commanded, ``tau`` beyond one
@@ -410,20 +409,6 @@ def presliding_range(s: Signals) -> tuple[float, float]:
     return 2.0 * s.contact_resolution, PRESLIDING_MAX_FRACTION * float(np.ptp(s.q))
 
 
-#: Break displacement of the switch, as a fraction of the contact resolution.  Half a step: the
-#: element turns fully at the first step the measured position takes in the new direction, which
-#: is what a contact without an elastic range (a Karnopp or Coulomb contact) shows through an
-#: encoder.  An element one step wide turns half there and fully at the second step: an elastic
-#: range of two steps, which as part of the null hid contacts whose blocks are narrower than a
-#: step (their force turns within the first step) together with the blocks beside them.
-SWITCH_FRACTION = 0.5
-
-
-def switch_width(s: Signals) -> float:
-    """Break displacement (m or rad) of the switch of friction at the measured reversal."""
-    return SWITCH_FRACTION * float(s.contact_resolution)
-
-
 def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
     out: list[LinearModel] = []
     lo, hi = presliding_range(s)
@@ -436,14 +421,14 @@ def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
         for n in range(1, len(grid) + 1):
             t = Term("presliding_hysteresis", ("w_switch",) + tuple(f"w_block{i + 1}" for i in range(n)),
                      lambda s, h: np.column_stack([_play(s, d) for d in h]),
-                     (switch_width(s),) + grid[:n], ("Delta_switch",) + tuple(f"Delta_block{i + 1}" for i in range(n)))
+                     (float(s.contact_resolution),) + grid[:n], ("Delta_switch",) + tuple(f"Delta_block{i + 1}" for i in range(n)))
             out.append(_add(model, t, "presliding_hysteresis"))
     return out
 
 
 def reversal_switch(term: Term) -> Term:
-    """The pre-sliding term's stiffest element alone (:func:`switch_width`): friction that
-    switches where the measured position reverses.  Every contact does that
+    """The pre-sliding term's stiffest element alone: a block one encoder step wide,
+    i.e. friction that switches where the measured position reverses.  Every contact does that
     (a Karnopp or LuGre contact as much as a Maxwell-slip one), and where the velocity filter
     blurs reversals it fits better than ``sign(qd)`` of the filtered velocity; that is no
     evidence of an elastic range, so pre-sliding is tested against the model with this switch."""
@@ -886,7 +871,7 @@ def detection_limits(s: Signals, rotary: bool = False) -> dict[str, dict[str, fl
         "position_resolution": {"value": float(s.resolution), "quantity": "position",
                                 "how": "the encoder step (1st percentile of the sample-to-sample changes) or the position noise, whichever is larger"},
         "presliding_hysteresis": {"smallest_break_displacement": float(lo), "largest_break_displacement": float(hi), "quantity": "position",
-                                  "switch_width": switch_width(s), "looked_for": bool(hi > lo),
+                                  "switch_width": float(s.contact_resolution), "looked_for": bool(hi > lo),
                                   "below": "a contact that narrow switches within the resolution: the switch of friction at the reversal"},
         "input_delay": {"smallest_delay": float(DELAY_STEPS[0] * s.dt), "largest_delay": float(DELAY_STEPS[-1] * s.dt), "quantity": "time",
                         "below": "timing within a sample is the alignment (reported under alignment), not an effect"},
