@@ -1131,3 +1131,6 @@ def test_resolution_bands_place_each_contact_by_its_widest_block_and_each_delay_
     assert resolution.main([str(tmp_path), str(tmp_path)]) == 2 and "named twice" in capsys.readouterr().err
     (tmp_path / "cases.json").write_text("not json")
     assert resolution.main([str(tmp_path)]) == 2 and "not the files of a finished campaign" in capsys.readouterr().err
+    (tmp_path / "cases.json").write_text("[]")
+    (tmp_path / "results.json").write_text('{"cases": 5}')
+    assert resolution.main([str(tmp_path)]) == 2 and "not the files of a finished campaign" in capsys.readouterr().err

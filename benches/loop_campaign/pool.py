@@ -47,6 +47,8 @@ def read_draw(d: Path) -> tuple[list[dict[str, Any]], dict[str, dict[str, Any]]]
     """A finished campaign's results and its case specs by id (none without ``cases.json``)."""
     try:
         results = json.loads((d / "results.json").read_text())["cases"]
+        if not isinstance(results, list) or not all(isinstance(r, dict) and "id" in r and "status" in r for r in results):
+            raise ValueError("its cases are not a list of results with an id and a status")
         specs = {c["id"]: c for c in json.loads((d / "cases.json").read_text())} if (d / "cases.json").is_file() else {}
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise UnreadableDraw(f"{d}: not the files of a finished campaign ({type(exc).__name__}: {exc})") from None
