@@ -902,6 +902,31 @@ def test_a_delay_must_beat_a_freely_timed_switch_of_friction(monkeypatch):
     assert run_loop(*runs, cfg).effects == ["input_delay"]
 
 
+def test_a_freely_timed_switch_that_fails_on_the_held_out_run_is_no_rival_of_a_delay(monkeypatch):
+    """A Karnopp rig built by the campaign (seed 133), a 1.6 ms delay at 1 kHz, estimated on
+    trapezoid moves and held out on a sweep.  The switch's timing chosen on the trapezoid's stops
+    predicts the sweep worse than no switch at all; a delay compared against it loses (both models
+    fail there), and against the null without it gains with t >= 3, also clear of reversals.  With
+    the switch refuted on the held-out run the delay is named within one sample of the planted
+    shift; kept as a rival regardless, it is not."""
+    from gmsfric.loop import LoopConfig, run_loop, select
+
+    case_id = "single-101-input_delay"
+    runs = _campaign_runs(133, case_id)
+    cfg = LoopConfig(progress=False, effects=("input_delay",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == ["input_delay"]
+    step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
+    assert step.evidence["free_switch_refuted_on_held_out_data"] is True
+    assert step.evidence["t_heldout_away_from_reversals"] >= cfg.t_threshold
+    case = next(c for c in campaign_cases.make_cases(133, emps=False) if c["id"] == case_id)
+    planted = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay") + 0.5 / case["rig"]["f_ctrl"]
+    dt = float(np.median(np.diff(runs[0].t)))
+    assert abs(res.final.params()["delay_s"]["value"] - planted) <= dt
+    monkeypatch.setattr(select, "_switch_refuted", lambda *a: False)
+    assert run_loop(*runs, cfg).effects == []
+
+
 def test_a_real_delay_keeps_its_gain_beyond_a_freely_timed_switch():
     """The same kind of rig (Karnopp contact, seed 81) with a planted 0.8 ms delay on trapezoid
     moves: the delay times the inertia too, which no switch of friction does; it keeps its

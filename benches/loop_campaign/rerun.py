@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import shlex
 import sys
 import time
@@ -66,6 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     todo = [old[i] for i in ids if old[i]["status"] in ("ok", "fail")]
     gms = args.gmsfric.split() if args.gmsfric else gmsfric_command()
     args.out.mkdir(parents=True, exist_ok=True)
+    if (args.src / "cases.json").is_file():
+        # the draw's specs travel with its results: pool.py and resolution.py read them there
+        shutil.copyfile(args.src / "cases.json", args.out / "cases.json")
     print(f"{len(todo)} of {len(old)} cases again -> {args.out} (loop: {' '.join(gms)})", file=sys.stderr)
     t0 = time.perf_counter()
     new = dict(old)
