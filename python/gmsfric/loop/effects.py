@@ -214,14 +214,18 @@ class Effect:
         on its own.  The effect's tests (held-out, cross-validated, BIC; forward, in pairs and
         backward) compare against the model with this part kept rather than with the whole term
         removed, so the effect must explain what its null does not.
-    acts_over_time : bool
-        The effect's force changes over the run (a warm-up dies out, a drift grows): its held-out
-        tests (forward, in pairs, in exchanges and backward) are also made on the chunks where its
-        own fitted force is at least its mean chunk's (``heldout.ACTING_FRACTION``), the smaller
-        p-value doubled (``heldout.paired_chunk_test``).  With the effect, the baseline is refitted
-        and differs from the null's everywhere, and the chunks where a warm-up has died out would
-        weigh as much as those where it acts.  The chunks are chosen from the fitted force, not
-        the measured one, so a useless effect still gains nothing on them on average.
+    acting : callable, optional
+        ``acting(model, signals) -> Array``: how much the effect acts on each decimated row of
+        ``signals``, from the fitted ``model`` (a force, or a share of one).  For an effect that
+        acts in some places only: its held-out tests (forward, in pairs, in exchanges and
+        backward) are also made on the chunks where it acts at least as much as in its mean
+        chunk (``heldout.ACTING_FRACTION``), the smaller p-value doubled
+        (``heldout.paired_chunk_test``).  With the effect, the baseline is refitted and differs
+        from the null's everywhere, and chunks where the effect does not act would weigh as much
+        as those where it does: a drift's force where a warm-up has died out, a contact's
+        between reversals, once its blocks have all slipped.  The chunks are chosen from the
+        fitted model, not the measured force, so a useless effect still gains nothing on them on
+        average.
     rivals : callable, optional
         ``rivals(model, chosen, est_signals, residual_rows) -> [(rival, what), ...]``: models of
         what the effect may be taken for, built around its ``chosen`` variant from the current
@@ -264,7 +268,7 @@ class Effect:
     consistency_only: bool = False
     refit_clear_of_reversals: bool = False
     creeping: bool = False
-    acts_over_time: bool = False
+    acting: Callable[[LinearModel, Signals], Array] | None = None
     chosen_clear_of_reversals: bool = False
     even_in_speed: bool = False
     rivals: Callable[[LinearModel, LinearModel, Signals, Array], list[tuple[LinearModel, str]]] | None = None
@@ -423,6 +427,24 @@ def _presliding(model: LinearModel, s: Signals, r: Array) -> list[LinearModel]:
                      lambda s, h: np.column_stack([_play(s, d) for d in h]),
                      (float(s.contact_resolution),) + grid[:n], ("Delta_switch",) + tuple(f"Delta_block{i + 1}" for i in range(n)))
             out.append(_add(model, t, "presliding_hysteresis"))
+    return out
+
+
+def elastic_force(model: LinearModel, s: Signals) -> Array:
+    """What the fitted ``model``'s pre-sliding blocks hold short of their break forces, on the
+    decimated rows of ``s``: ``sum |w_k| (1 - |z_k|)`` over the blocks (the switch left out), with
+    ``z_k`` each element's state as a share of its break force.  Zero once every block has
+    slipped: a contact acts within its elastic range after each reversal, not between them."""
+    steps = model.delay / s.dt
+    out = np.zeros(s.n_rows)
+    k = 0
+    for t in model.terms:
+        n = len(t.param_names)
+        if t.name == "presliding_hysteresis":
+            z = term_rows(t, s, steps)[:, 1:]
+            w = np.abs(np.asarray(model.theta)[k + 1:k + n])
+            out += (1.0 - np.clip(np.abs(z), 0.0, 1.0)) @ w
+        k += n
     return out
 
 
@@ -896,11 +918,11 @@ CATALOGUE: dict[str, Effect] = {
                probe=lambda p, s: p["vs"]["value"] > s.v_scale, clear_of_reversals=_stribeck_dip, contested=_contested_hump,
                refine=stribeck_bounds),
         Effect("presliding_hysteresis", "elasto-plastic pre-sliding after reversals (GMS / Maxwell-slip blocks)", "reversal", _presliding, _blocks_ok,
-               null=reversal_switch, creeping=True),
+               null=reversal_switch, creeping=True, acting=elastic_force),
         Effect("position_dependent_friction", "the friction level varies along the travel", "position_odd", _pos_friction),
         Effect("position_dependent_force", "a force that depends on position only (cogging, spring, cable, gravity)", "position", _pos_force),
         Effect("input_delay", "the drive force acts a delay after it is commanded", "lag", _delay, whole_motion=True, refit_clear_of_reversals=True),
-        Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants, acts_over_time=True,
+        Effect("friction_drift", "friction changes over the run (warm-up, lubricant)", "time", _drift_variants, acting=lambda m, s: m.term_force(s, ("friction_drift",)),
                refine=lambda s: [DRIFT_TAU_RANGE]),
         Effect("heating", "friction follows the recent motion (speed low-passed over seconds: temperature, lubricant)", "time", _heating_variants, _heating_ok,
                probe=lambda p, s: not HEATING_MIN_TAU_S <= p["heating_tau_s"]["value"] < s.duration, null=heating_trend),
