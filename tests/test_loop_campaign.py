@@ -905,6 +905,23 @@ def test_a_cable_pull_that_gives_back_the_coulomb_level_enters_on_a_rotary_joint
     assert abs(res.final.params()["Fc"]["value"] - true_fc) < 0.1 * true_fc
 
 
+def _named_delay(seed: int, case_id: str):
+    """A campaign case's runs, the loop's configuration (the delay alone) and the step that names
+    the delay, checked to be the planted one plus the sampling hold (half a controller period)
+    within one log sample."""
+    from gmsfric.loop import LoopConfig, run_loop
+
+    runs = _campaign_runs(seed, case_id)
+    cfg = LoopConfig(progress=False, effects=("input_delay",))
+    res = run_loop(*runs, cfg)
+    assert res.effects == ["input_delay"]
+    case = next(c for c in campaign_cases.make_cases(seed, emps=False) if c["id"] == case_id)
+    planted = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay") + 0.5 / case["rig"]["f_ctrl"]
+    dt = float(np.median(np.diff(runs[0].t)))
+    assert abs(res.final.params()["delay_s"]["value"] - planted) <= dt
+    return runs, cfg, next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
+
+
 def test_a_delay_must_beat_a_freely_timed_switch_of_friction(monkeypatch):
     """A clean Karnopp rig on random moves (the campaign's seed 81, 5 kHz): the contact sticks at
     every reversal, and the filtered velocity's sign switches about 8 samples off the friction's
@@ -932,20 +949,11 @@ def test_a_freely_timed_switch_that_fails_on_the_held_out_run_is_no_rival_of_a_d
     fail there), and against the null without it gains with t >= 3, also clear of reversals.  With
     the switch refuted on the held-out run the delay is named within one sample of the planted
     shift; kept as a rival regardless, it is not."""
-    from gmsfric.loop import LoopConfig, run_loop, select
+    from gmsfric.loop import run_loop, select
 
-    case_id = "single-101-input_delay"
-    runs = _campaign_runs(133, case_id)
-    cfg = LoopConfig(progress=False, effects=("input_delay",))
-    res = run_loop(*runs, cfg)
-    assert res.effects == ["input_delay"]
-    step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
+    runs, cfg, step = _named_delay(133, "single-101-input_delay")
     assert step.evidence["free_switch_refuted_on_held_out_data"] is True
     assert step.evidence["t_heldout_away_from_reversals"] >= cfg.t_threshold
-    case = next(c for c in campaign_cases.make_cases(133, emps=False) if c["id"] == case_id)
-    planted = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay") + 0.5 / case["rig"]["f_ctrl"]
-    dt = float(np.median(np.diff(runs[0].t)))
-    assert abs(res.final.params()["delay_s"]["value"] - planted) <= dt
     monkeypatch.setattr(select, "_switch_refuted", lambda *a: False)
     assert run_loop(*runs, cfg).effects == []
 
@@ -955,21 +963,12 @@ def test_a_real_delay_keeps_its_gain_beyond_a_freely_timed_switch():
     moves: the delay times the inertia too, which no switch of friction does; it keeps its
     held-out gain beyond a freely timed switch and is named within one sample of the planted
     shift (delay plus the sampling hold)."""
-    from gmsfric.loop import LoopConfig, run_loop, select
+    from gmsfric.loop import select
 
-    case_id = "single-103-input_delay"
-    runs = _campaign_runs(81, case_id)
-    cfg = LoopConfig(progress=False, effects=("input_delay",))
-    res = run_loop(*runs, cfg)
-    assert res.effects == ["input_delay"]
-    step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
+    _, _, step = _named_delay(81, "single-103-input_delay")
     assert step.evidence["validation_gain_beyond_a_free_switch"] >= 0.5 * step.evidence["validation_gain"]
     # its gain is spread over the motion's frequencies, not held by one line
     assert step.evidence["gain_share_in_one_line"] < 0.5 * select.TONE_GAIN_SHARE
-    case = next(c for c in campaign_cases.make_cases(81, emps=False) if c["id"] == case_id)
-    planted = next(e["tau"] for e in case["effects"] if e["name"] == "input_delay") + 0.5 / case["rig"]["f_ctrl"]
-    dt = float(np.median(np.diff(runs[0].t)))
-    assert abs(res.final.params()["delay_s"]["value"] - planted) <= dt
 
 
 def test_a_delay_that_explains_far_more_than_a_free_switch_needs_it_only_at_the_nominal_level(monkeypatch):
