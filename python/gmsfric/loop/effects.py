@@ -435,17 +435,13 @@ def elastic_force(model: LinearModel, s: Signals) -> Array:
     decimated rows of ``s``: ``sum |w_k| (1 - |z_k|)`` over the blocks (the switch left out), with
     ``z_k`` each element's state as a share of its break force.  Zero once every block has
     slipped: a contact acts within its elastic range after each reversal, not between them."""
-    steps = model.delay / s.dt
-    out = np.zeros(s.n_rows)
-    k = 0
-    for t in model.terms:
-        n = len(t.param_names)
-        if t.name == "presliding_hysteresis":
-            z = term_rows(t, s, steps)[:, 1:]
-            w = np.abs(np.asarray(model.theta)[k + 1:k + n])
-            out += (1.0 - np.clip(np.abs(z), 0.0, 1.0)) @ w
-        k += n
-    return out
+    term = next((t for t in model.terms if t.name == "presliding_hysteresis"), None)
+    if term is None:
+        return np.zeros(s.n_rows)
+    theta = dict(zip(model.param_names, model.theta))
+    w = np.abs([theta[n] for n in term.param_names[1:]])
+    z = term_rows(term, s, model.delay / s.dt)[:, 1:]
+    return (1.0 - np.clip(np.abs(z), 0.0, 1.0)) @ w
 
 
 def reversal_switch(term: Term) -> Term:
