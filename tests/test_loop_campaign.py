@@ -554,6 +554,41 @@ def test_a_pair_is_screened_on_its_joint_fit_not_on_its_members_alone():
     assert e1 < 0.1 * e0
 
 
+def _audit_runs(name: str):
+    """An outside audit's case kept in ``tests/data`` (``benches/loop_audit2/run.py --seed S --only
+    ID`` writes it again, with numba): the encoder's steps and the logged torque (mN m, float32)
+    of both runs, logged at a fixed period, as SI runs."""
+    from gmsfric.loop import AxisData
+
+    z = np.load(REPO / "tests" / "data" / f"{name}.npz")
+    step, period = float(z["encoder_step_rad"]), float(z["sample_period_s"])
+    runs = []
+    for which in ("est", "val"):
+        q = z[f"{which}_steps"].astype(float) * step
+        runs.append(AxisData(np.arange(q.size) * period, q, z[f"{which}_torque_mNm"].astype(float) * 1e-3, source=which))
+    return tuple(runs)
+
+
+def test_a_pair_is_chosen_again_together_before_its_held_out_test():
+    """An outside audit's rotary axis (seed 21, ``p091``): a friction that warms up over the run
+    (time constant 4.2 s, by 54 %) and one that changes with the position, on an estimation run
+    that ranges over the travel first and lingers in one part of it late, so that time and
+    position are confounded there.  Each effect chosen alone absorbs the other the wrong way and
+    the two combined as chosen predict the held-out run worse than the baseline; chosen again
+    together they remove most of its error.  The pair is chosen again before its held-out test,
+    so it enters, with the warm-up near the planted one."""
+    from gmsfric.loop import LoopConfig, run_loop
+
+    runs = _audit_runs("audit2_seed21_p091")
+    res = run_loop(*runs, LoopConfig(progress=False, effects=("friction_drift", "position_dependent_friction")))
+    assert sorted(res.effects) == ["friction_drift", "position_dependent_friction"]
+    assert all("entered together" in s.reason for s in res.steps if s.accepted)
+    e0, e1 = res.split.errors_moving(res.baseline)[1], res.split.errors_moving(res.final)[1]
+    assert e1 < 0.2 * e0
+    tau = res.final.params()["drift_tau_over_T"]["value"] * (runs[0].t[-1] - runs[0].t[0])
+    assert abs(tau - 4.21) < 0.25 * 4.21
+
+
 def test_a_position_basis_is_tested_within_the_estimation_travel(monkeypatch):
     """A Stribeck curve beside a position-dependent force (the campaign's seed 117): the held-out
     run travels four times as far as the estimation run, where the fitted polynomial in the
