@@ -405,3 +405,118 @@ def test_a_log_without_time_takes_a_sample_rate_and_refuses_a_bad_one(tmp_path):
     for bad in (0.0, -5.0, float("nan"), "1000"):
         with pytest.raises(InvalidInputError, match="`sample_rate`"):
             load_axis_data(p, sample_rate=bad, position="q", force="F")
+
+
+def test_a_gap_in_the_log_is_marked_unobserved_not_made_up():
+    """A logger that loses 0.3 s of a 1 kHz log: the uniform grid runs through the gap, but its
+    samples there are interpolated, so they are marked unobserved, and the loop's rows within
+    the filters' reach of them are left out; a late sample now and then is no gap."""
+    from gmsfric.loop import Signals
+    from gmsfric.loop.data import GAP_STEPS
+
+    t = np.arange(6000) * 1e-3
+    keep = (t < 2.5) | (t > 2.8)
+    q = 0.02 * np.sin(2 * np.pi * 0.5 * t)
+    f = 5.0 * np.cos(2 * np.pi * 0.5 * t) + np.sign(np.cos(2 * np.pi * 0.5 * t))
+    d = AxisData(t[keep], q[keep], f[keep])
+    tm = d.timing
+    assert tm["resampled"] and tm["gaps"] == 1 and tm["longest_gap_s"] == pytest.approx(0.301, rel=1e-6)
+    np.testing.assert_allclose(np.diff(d.t), 1e-3, rtol=1e-9)
+    inside = (d.t > 2.5 - 1e-9) & (d.t < 2.801 - 1e-9) & ~np.isin(np.round(d.t * 1e3), np.round(t[keep] * 1e3))
+    np.testing.assert_array_equal(d.observed, ~inside)
+    assert tm["samples_in_gaps"] == int(inside.sum()) == 300
+    s = Signals(d)
+    gap_rows = (s.rows["t"] + d.t[0] > 2.5) & (s.rows["t"] + d.t[0] < 2.8)
+    assert s.in_gap[gap_rows].all() and not s.moving[gap_rows].any()
+    assert 0.0 < s.in_gap.mean() < 0.2  # the gap and the filters' reach, not the run
+    assert not s.observed[inside].any() and s.observed[~inside].mean() > 0.9
+    # a log late by up to GAP_STEPS steps now and then has no gap
+    late = t + np.where(np.arange(t.size) % 97 == 0, 0.5e-3, 0.0)
+    jittered = AxisData(late, q, f)
+    assert jittered.timing["resampled"] and jittered.timing["gaps"] == 0 and jittered.observed is None
+    assert GAP_STEPS * 1e-3 > 1.5e-3
+
+
+def test_the_loop_leaves_a_gap_out_and_says_so():
+    """Runs of a rig with a planted viscous asymmetry, each with two lost stretches of 0.25 s:
+    interpolated across, the gaps' straight lines are forces no model explains and the loop
+    named nothing; left out, it finds the asymmetry, the baseline stays the rig's, and the
+    report says what was left out."""
+    from gmsfric.loop.rigs import Rig, rig_pair
+
+    rig = Rig(effect="asymmetric_friction", duration=16.0, seed=4)
+
+    def with_gaps(d: AxisData) -> AxisData:
+        keep = ~(((d.t > 5.0) & (d.t < 5.25)) | ((d.t > 11.0) & (d.t < 11.25)))
+        return AxisData(d.t[keep], d.position[keep], d.force[keep], source=d.source)
+
+    est, val = (with_gaps(d) for d in rig_pair(rig))
+    with pytest.warns(Warning):
+        res = run_loop(est, val)
+    assert "asymmetric_friction" in res.final.effects
+    p = res.final.params()
+    assert p["M"]["value"] == pytest.approx(rig.mass, rel=0.05)
+    assert p["Fc"]["value"] == pytest.approx(rig.fc, rel=0.15)
+    gaps = [d for d in res.diagnostics if d["code"] == "data" and d["parameter"] == "time"]
+    assert len(gaps) == 1 and "2 gaps" in gaps[0]["message"] and "left out" in gaps[0]["message"]
+
+
+def _wrapped(a: np.ndarray) -> np.ndarray:
+    """An angle as an encoder that keeps it within (-pi, pi] logs it."""
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def test_a_rotary_angle_that_wraps_around_is_unwrapped_and_a_jump_that_is_no_turn_refused():
+    t = np.arange(3000) * 1e-3
+    q = np.pi - 0.05 + 0.3 * np.sin(2 * np.pi * 1.0 * t)  # crosses +pi, where the encoder wraps
+    f = 2.0 * np.cos(2 * np.pi * 1.0 * t)
+    d = AxisData(t, _wrapped(q), f, rotary=True)
+    n_wraps = int((np.abs(np.diff(_wrapped(q))) > np.pi).sum())
+    assert n_wraps >= 4 and d.timing["turns_unwrapped"] == n_wraps
+    np.testing.assert_allclose(d.position, q - 2 * np.pi * np.round((q[0] - d.position[0]) / (2 * np.pi)), atol=1e-12)
+    assert np.abs(np.diff(d.position)).max() < 0.01
+    # a linear axis is never unwrapped: its position is in metres
+    assert "turns_unwrapped" not in AxisData(t, 1e-3 * np.sin(t), f).timing
+    # a jump of more than half a turn that is no whole turn is no encoder's wrap: refused, named
+    bad = q.copy()
+    bad[1500:] += 4.0
+    with pytest.raises(DataError, match=r"position jumps by 3\.99.* rows 1499 and 1500.*not a whole turn"):
+        AxisData(t, bad, f, rotary=True)
+
+
+def test_the_held_out_run_is_put_on_the_turn_of_the_estimation_run_without_changing_it():
+    from gmsfric.loop.data import on_the_same_turn
+
+    t = np.arange(3000) * 1e-3
+    f = 2.0 * np.cos(2 * np.pi * t)
+    est = AxisData(t, _wrapped(np.pi - 0.05 + 0.3 * np.sin(2 * np.pi * t)), f, rotary=True)
+    val = AxisData(t, _wrapped(np.pi + 0.2 + 0.3 * np.sin(2 * np.pi * 0.7 * t)), f, rotary=True)  # starts past pi: wrapped to -pi + 0.2
+    kept = val.position.copy()
+    moved = on_the_same_turn(est, val)
+    assert moved is not val and moved.timing["turns_moved_onto_estimation_travel"] == 1
+    np.testing.assert_allclose(moved.position, kept + 2 * np.pi)
+    assert abs(np.median(moved.position) - np.median(est.position)) < 1.0
+    np.testing.assert_array_equal(val.position, kept)  # the input is never changed
+    assert on_the_same_turn(est, est) is est
+    plain = AxisData(t, 0.3 * np.sin(2 * np.pi * t), f, rotary=True)
+    assert on_the_same_turn(plain, AxisData(t, plain.position + 2 * np.pi, f, rotary=True)).position[0] == pytest.approx(2 * np.pi)
+
+
+def test_the_loop_on_a_wrapped_rotary_log_finds_what_it_finds_on_the_unwrapped_one():
+    """A rig's runs read as a joint's angle about +pi, where the encoder wraps: unwrapped and put
+    on one turn, the loop finds the planted asymmetry with the same parameters as on the
+    continuous angle, and says what it did; wrapped as logged, the velocity holds 2 pi jumps."""
+    from gmsfric.loop.rigs import Rig, rig_pair
+
+    runs = rig_pair(Rig(effect="asymmetric_friction", duration=16.0, seed=4))
+    angle = [AxisData(d.t, np.pi - 0.05 + 5.0 * d.position, d.force, rotary=True, source=d.source) for d in runs]
+    wrapped = [AxisData(d.t, _wrapped(d.position), d.force, rotary=True, source=d.source) for d in angle]
+    assert all(w.timing["turns_unwrapped"] >= 1 for w in wrapped)
+    with pytest.warns(Warning):
+        res_w = run_loop(*wrapped)
+    res_a = run_loop(*angle)
+    assert res_w.final.effects == res_a.final.effects and "asymmetric_friction" in res_a.final.effects
+    pw, pa = res_w.final.params(), res_a.final.params()
+    for name in ("M", "Fv", "Fc"):
+        assert pw[name]["value"] == pytest.approx(pa[name]["value"], rel=1e-6)
+    assert any(d["code"] == "data" and d["parameter"] == "position" and "unwrapped" in d["message"] for d in res_w.diagnostics)

@@ -4,7 +4,8 @@ The loop can end with "no effect added" and a tidy table on a run that did not l
 anything: a force column unrelated to the motion, a run in one direction only (Coulomb friction
 and an offset are then one number), a clipped drive, a time or position column in another unit
 than declared, a held-out run that leaves the estimation run's travel, an effect the data
-support that was held back only to keep the baseline's physics plausible.  These checks put such
+support that was held back only to keep the baseline's physics plausible; and gaps in a log,
+which the loop leaves out, and an angle that wrapped around, which it unwraps.  These checks put such
 findings in the result's ``diagnostics`` (``{"code", "parameter", "message"}`` in the JSON) and
 warn each with :class:`~gmsfric.errors.FitWarning`; the CLI prints them under the table.  They
 only report: the selection does not use them.
@@ -23,9 +24,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..identify.diagnostics import Findings, check_saturation, fraction_at_limit
+from .data import GAP_STEPS
+from .idim import GAP_SETTLING_PERIODS
 
 if TYPE_CHECKING:
     from ..system import PID, Cascade
+    from .idim import Signals
     from .results import LoopResult, Step
 
 #: Relative rms error (%) of the final model on the moving rows of the estimation run above which
@@ -89,6 +93,8 @@ def check_result(result: "LoopResult") -> Findings:
         unit = "rad/s" if result.rotary else "m/s"
         found.add("units", f"the axis moves at up to {speed:.4g} {unit}, beyond the {TOP_SPEED[kind]:g} {unit} of servo axes: "
                            "is the position column in the declared unit (--position-unit)?", "position")
+    _check_gaps(found, result)
+    _check_wraps(found, result)
     _check_travel(found, result)
     _check_held_back(found, result)
     _check_unconfirmed(found, result)
@@ -169,6 +175,39 @@ def _check_unconfirmed(found: Findings, result: "LoopResult") -> None:
                              f"{100 * ev['validation_gain_away_from_reversals']:.1f} % (t = {ev['t_heldout_away_from_reversals']:.1f}): "
                              "not added, a sticking contact's lag at reversals can look like this; a step or frequency-response test of the drive settles it",
               "input_delay")
+
+
+def _check_gaps(found: Findings, result: "LoopResult") -> None:
+    """Gaps in a log (samples lost): what was made up across them is left out, and said so."""
+    parts = []
+    for sig in _runs(result):
+        n = sig.data.timing.get("gaps", 0)
+        if n:
+            parts.append(f"{sig.data.source}: {n} gap{'s' if n > 1 else ''} (longest {sig.data.timing['longest_gap_s']:.3g} s, "
+                         f"{100.0 * sig.in_gap.mean():.1f} % of the rows left out)")
+    if parts:
+        found.add("data", f"gaps in the log longer than {GAP_STEPS:g} sample steps, {'; '.join(parts)}: the samples interpolated "
+                          f"across a gap and the rows within {GAP_SETTLING_PERIODS:g} filter periods of it are left out of every fit and test",
+                  "time")
+
+
+def _check_wraps(found: Findings, result: "LoopResult") -> None:
+    """A rotary position that wrapped around: unwrapped, and the runs put on one turn."""
+    parts = []
+    for sig in _runs(result):
+        timing = sig.data.timing
+        n, k = timing.get("turns_unwrapped", 0), timing.get("turns_moved_onto_estimation_travel", 0)
+        if n or k:
+            parts.append(f"{sig.data.source}: " + ", ".join(([f"{n} whole-turn jump{'s' if n > 1 else ''} unwrapped"] if n else [])
+                                                           + ([f"moved by {k:+d} turn{'s' if abs(k) > 1 else ''} onto the estimation run's travel"] if k else [])))
+    if parts:
+        found.add("data", f"the angle wraps around (an encoder that keeps it within one turn): {'; '.join(parts)}; "
+                          "positions are relative to a turn the log does not give", "position")
+
+
+def _runs(result: "LoopResult") -> list["Signals"]:
+    """The estimation run, and the held-out run when it is another."""
+    return [result.split.est] + ([result.split.val] if result.split.val is not result.split.est else [])
 
 
 def _check_travel(found: Findings, result: "LoopResult") -> None:

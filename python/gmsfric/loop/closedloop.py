@@ -84,11 +84,12 @@ def simulate_axis(axis: AxisModel, sig: Signals, controller: PID | Cascade) -> t
     assert res.position is not None and res.command is not None
     v_m, a_m = _derivatives(d.position, sig)
     v_s, a_s = _derivatives(res.position, sig)
+    ok = sig.observed  # not what a resampling made up across a gap in the log
     errors = {
-        "position_pct": relative_error(d.position, res.position),
-        "velocity_pct": relative_error(v_m, v_s),
-        "acceleration_pct": relative_error(a_m, a_s),
-        "force_pct": relative_error(d.force, gain * res.command),
+        "position_pct": relative_error(d.position[ok], res.position[ok]),
+        "velocity_pct": relative_error(v_m[ok], v_s[ok]),
+        "acceleration_pct": relative_error(a_m[ok], a_s[ok]),
+        "force_pct": relative_error(d.force[ok], gain * res.command[ok]),
     }
     return res, errors
 

@@ -8,6 +8,7 @@ as a drive ``command`` times a ``gain`` (a number or the name of a scalar in the
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -57,7 +58,13 @@ class AxisData:
         The sampling of the time column as read (see :func:`timing_summary`), and whether and
         how the run was resampled; then also ``position_step_as_logged`` (m or rad), the encoder
         step before the interpolation put positions between steps (the position resolution), and
-        ``encoder_step_as_logged`` when the log rested on a lattice (see :func:`encoder_step`).
+        ``encoder_step_as_logged`` when the log rested on a lattice (see :func:`encoder_step`),
+        and ``turns_unwrapped`` when a rotary position wrapped around (kept within one turn by its
+        encoder) and was unwrapped.
+    observed : ndarray of bool or None
+        Set by the resampling: whether each sample of the uniform grid was measured, ``False``
+        inside a gap of the log (a step longer than :data:`GAP_STEPS` median steps), where the
+        interpolation made it up; ``None`` when every sample was measured.
     """
 
     t: NDArray[np.float64]
@@ -71,6 +78,8 @@ class AxisData:
     meta: dict[str, float] = field(default_factory=dict)
     rotary: bool = False
     timing: dict[str, Any] = field(default_factory=dict)
+    observed: NDArray[np.bool_] | None = field(default=None, init=False, repr=False)
+    _turns_unwrapped: int = field(default=0, init=False, repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.rotary, (bool, np.bool_)):
@@ -105,17 +114,21 @@ class AxisData:
             raise DataError(f"{self.source}: time is not strictly increasing at row {i}: {repeated} of {n} time stamps repeat the one "
                             "before, too many for a late sample now and then; is the time column rounded too coarsely for the "
                             "sample rate?")
+        for name in ("t", "position", "force", "command", "reference", "disturbance"):
+            if (a := getattr(self, name)) is not None:
+                within_fit_range(f"{self.source}: {name}", a, error=DataError)
+        if self.rotary:
+            self._unwrap_turns()  # before samples are averaged across a wrap
         if repeated:
             self._merge_repeated_stamps()
             d = np.diff(self.t)
             if self.t.size < MIN_SAMPLES:
                 raise DataError(f"{self.source}: too few samples ({self.t.size} time stamps); the loop needs at least {MIN_SAMPLES}")
-        for name in ("t", "position", "force", "command", "reference", "disturbance"):
-            if (a := getattr(self, name)) is not None:
-                within_fit_range(f"{self.source}: {name}", a, error=DataError)
         within_fit_range(f"{self.source}: position", self.position, time_step=float(np.min(d)), error=DataError)
         if not self.timing:
             self.timing = timing_summary(self.t)
+            if self._turns_unwrapped:
+                self.timing["turns_unwrapped"] = self._turns_unwrapped
             if repeated:
                 self.timing.update(samples_in=n, repeated_stamps_merged=repeated)
             if self.timing["irregular"]:
@@ -124,6 +137,30 @@ class AxisData:
             raise DataError(f"{self.source}: position never changes; nothing to identify")
         if not np.any(self.force != 0):
             raise DataError(f"{self.source}: force is zero everywhere")
+
+    def _unwrap_turns(self) -> None:
+        """Undo an encoder's wrap-around (an angle kept within one turn): a change of more than
+        half a turn between two samples is no motion of a servo axis (pi rad per sample is
+        3000 rad/s at 1 kHz), and when each such change is a whole turn give or take
+        :data:`WRAP_TOLERANCE`, the turns are added back; any other jump is refused."""
+        self._turns_unwrapped = 0
+        for name in ("position", "reference"):
+            a = getattr(self, name)
+            if a is None:
+                continue
+            d = np.diff(a)
+            jumps = np.flatnonzero(np.abs(d) > np.pi)
+            if not jumps.size:
+                continue
+            turns = d[jumps] / (2.0 * np.pi)
+            odd = np.flatnonzero(np.abs(turns - np.round(turns)) > WRAP_TOLERANCE)
+            if odd.size:
+                i = int(jumps[odd[0]])
+                raise DataError(f"{self.source}: {name} jumps by {d[i]:.4g} rad between rows {i} and {i + 1}: more than half a turn in "
+                                "one sample, and not a whole turn as an encoder that wraps around makes; a corrupt or mislabelled column?")
+            setattr(self, name, np.unwrap(a, period=2.0 * np.pi))
+            if name == "position":
+                self._turns_unwrapped = int(jumps.size)
 
     def _merge_repeated_stamps(self) -> None:
         """One sample per time stamp: the samples logged under one stamp averaged."""
@@ -138,7 +175,9 @@ class AxisData:
 
         Real loggers are late now and then; the filters, derivatives and decimation of the
         recipe need a uniform grid, and a timing error of a fraction of a step is far smaller
-        than the dynamics the loop identifies.  The measured jitter stays in ``timing``."""
+        than the dynamics the loop identifies.  The measured jitter stays in ``timing``.  Across a
+        gap (samples lost) the straight line is no measurement: the grid's samples inside one are
+        marked unobserved (:attr:`observed`), and the loop leaves them out."""
         step = self.timing["median_step_s"]
         # interpolation puts positions between the encoder's steps: keep the step as logged
         self.timing["position_step_as_logged"] = quantisation_step(self.position)
@@ -146,6 +185,15 @@ class AxisData:
             self.timing["encoder_step_as_logged"] = lattice
         n = int(np.floor((self.t[-1] - self.t[0]) / step + 1e-9)) + 1
         tu = self.t[0] + step * np.arange(n)
+        gaps = np.flatnonzero(np.diff(self.t) > GAP_STEPS * step)
+        if gaps.size:
+            eps = 1e-6 * step  # a grid sample on a measured one (to rounding) is measured
+            edges = np.zeros(n + 1, dtype=np.int64)
+            np.add.at(edges, np.searchsorted(tu, self.t[gaps] + eps, side="right"), 1)
+            np.add.at(edges, np.searchsorted(tu, self.t[gaps + 1] - eps, side="left"), -1)
+            observed = np.cumsum(edges[:n]) == 0
+            self.observed = observed
+            self.timing["samples_in_gaps"] = int(n - observed.sum())
         for name in ("position", "force", "command", "reference", "disturbance"):
             a = getattr(self, name)
             if a is not None:
@@ -161,6 +209,24 @@ class AxisData:
 
     def __len__(self) -> int:
         return int(self.t.size)
+
+
+def on_the_same_turn(est: AxisData, val: AxisData) -> AxisData:
+    """``val`` moved by whole turns onto the travel of ``est`` when either run's rotary encoder
+    wrapped around (unwrapped, each run keeps the turn of its first sample, and which turn that
+    is the log does not say); ``val`` itself when neither wrapped or it already lies there.  A
+    copy is moved, never ``val``."""
+    if not (est.rotary and (est.timing.get("turns_unwrapped") or val.timing.get("turns_unwrapped"))):
+        return val
+    k = int(np.round((np.median(est.position) - np.median(val.position)) / (2.0 * np.pi)))
+    if k == 0:
+        return val
+    moved = copy.copy(val)
+    moved.position = val.position + 2.0 * np.pi * k
+    if val.reference is not None:
+        moved.reference = val.reference + 2.0 * np.pi * k
+    moved.timing = {**val.timing, "turns_moved_onto_estimation_travel": k}
+    return moved
 
 
 def quantisation_step(position: NDArray[np.float64]) -> float:
@@ -206,14 +272,24 @@ def encoder_step(position: NDArray[np.float64]) -> float | None:
 #: Relative spread of the time steps above which a log counts as irregular and is resampled.
 JITTER_TOLERANCE = 0.01
 
+#: Share of a turn by which a jump of a rotary position may differ from whole turns and still be
+#: an encoder's wrap-around: the axis's own motion within the sample.
+WRAP_TOLERANCE = 0.05
+
+#: A time step longer than this many median steps is a gap in the log (samples lost), not a late
+#: sample: loggers that jitter stay within about twice their step (a 100 Hz robot log: 2 to 12 ms).
+GAP_STEPS = 4.0
+
 
 def timing_summary(t: NDArray[np.float64]) -> dict[str, Any]:
     """The sampling of a time column: median, smallest and largest step, the share of steps that
     differ from the median by more than :data:`JITTER_TOLERANCE`, and whether that makes the log
-    irregular (then :class:`AxisData` resamples it)."""
+    irregular (then :class:`AxisData` resamples it); the gaps (steps longer than :data:`GAP_STEPS`
+    median steps) and the longest of them."""
     d = np.diff(t)
     med = float(np.median(d))
     off = np.abs(d - med) > JITTER_TOLERANCE * med
+    gaps = d > GAP_STEPS * med
     return {
         "irregular": bool(off.any()),
         "resampled": False,
@@ -222,6 +298,8 @@ def timing_summary(t: NDArray[np.float64]) -> dict[str, Any]:
         "max_step_s": float(d.max()),
         "step_std_s": float(d.std()),
         "irregular_steps_pct": float(100.0 * off.mean()),
+        "gaps": int(gaps.sum()),
+        "longest_gap_s": float(d[gaps].max()) if gaps.any() else 0.0,
         "samples_in": int(t.size),
     }
 

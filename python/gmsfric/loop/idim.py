@@ -164,6 +164,30 @@ def decimation_gain(dec: int) -> float:
 DECIMATION_SETTLING_TOL = 0.01
 
 
+#: Periods of the velocity filter's cut-off over which samples next to a gap in the log are left
+#: out: the zero-phase filter spreads what the interpolation made up over them.
+GAP_SETTLING_PERIODS = 2.0
+
+
+def gap_reach(fs: float, cutoff: float) -> int:
+    """Samples on either side of a gap whose filtered states the gap reaches."""
+    return max(1, int(np.ceil(GAP_SETTLING_PERIODS * fs / cutoff)))
+
+
+def observed_samples(observed: Array | None, n: int, reach: int, edge: int, dec: int, n_rows: int) -> tuple[Array, Array]:
+    """``(samples, rows_in_gap)`` of a run of ``n`` samples: the samples at least ``reach``
+    samples from an unobserved one (every sample when ``observed`` is ``None``), and the
+    decimated rows that are not (widened by the decimation filter's settling)."""
+    if observed is None or observed.all():
+        return np.ones(n, dtype=bool), np.zeros(n_rows, dtype=bool)
+    near = ndimage.maximum_filter1d((~observed).astype(np.uint8), 2 * reach + 1).astype(bool)
+    rows = near[edge : near.size - edge : dec][:n_rows]
+    settle = decimation_settling_rows(dec)
+    if settle:
+        rows = ndimage.maximum_filter1d(rows.astype(np.uint8), 2 * settle + 1).astype(bool)
+    return ~near, np.ascontiguousarray(rows)
+
+
 @functools.lru_cache(maxsize=None)
 def decimation_settling_rows(dec: int) -> int:
     """Rows on either side of a step over which :func:`scipy.signal.decimate` (zero-phase, the
@@ -254,10 +278,18 @@ class Signals:
         span = ndimage.maximum_filter1d(data.position, 2 * h + 1) - ndimage.minimum_filter1d(data.position, 2 * h + 1)
         stuck = ndimage.maximum_filter1d((span <= 1.5 * self.resolution).astype(np.uint8), 2 * h + 1).astype(bool)
         self.stuck = np.ascontiguousarray(stuck[self.edge : n - self.edge : self.dec][: self.n_rows])
+        #: Samples (full rate) and rows measured: clear of the samples a resampling made up across
+        #: a gap in the log by the filters' reach (see :func:`gap_reach`).
+        self.observed, self.in_gap = observed_samples(data.observed, n, gap_reach(self.fs, self.cutoff), self.edge, self.dec, self.n_rows)
         #: Rows where the axis moves; at rest a stuck axis holds any force up to break-away
         #: (set-valued stiction), which no regression column describes.
-        self.moving = (np.abs(self.rows["qd"]) >= self.rest_speed) & ~self.stuck
+        self.moving = self.moving_above(self.rest_speed)
         self._cache: dict[tuple, Array] = {}
+
+    def moving_above(self, speed: float) -> Array:
+        """Rows faster than ``speed`` (filtered velocity) where the measured position moves and the
+        log has data."""
+        return (np.abs(self.rows["qd"]) >= speed) & ~self.stuck & ~self.in_gap
 
     def decimate(self, x: Array) -> Array:
         """Drop the edges and decimate (zero-phase), along the first axis."""

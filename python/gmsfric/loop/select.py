@@ -81,7 +81,7 @@ from .._validate import count, finite
 from ..errors import IdentificationError, InvalidInputError
 from ..identify.diagnostics import emit
 from .checks import check_result
-from .data import AxisData
+from .data import GAP_STEPS, AxisData, on_the_same_turn
 from .effects import CATALOGUE, DELAY_STEPS, Effect, alternative_forms, detection_limits, has_position_basis, switch_timing
 from .heldout import ClearRows, HeldOut, Split, chunk_rows, clear_rows, heldout, heldout_clear, paired_chunk_test
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
@@ -308,7 +308,7 @@ def _estimation_signals(est: AxisData, cfg: LoopConfig, held_out: bool) -> tuple
         rest = cfg.rest_fraction * s.v_scale
         if rest != s.rest_speed:
             s.rest_speed = rest
-            s.moving = (np.abs(s.rows["qd"]) >= rest) & ~s.stuck
+            s.moving = s.moving_above(rest)
         return s
 
     pre = cfg.preprocessing
@@ -340,14 +340,15 @@ def make_split(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> Split:
     creep = min(cfg.creep_fraction, cfg.rest_fraction) * s.v_scale
 
     def creeping(sig: Signals, rows: Array) -> Array:
-        return rows & ~sig.stuck & (np.abs(sig.rows["qd"]) >= creep)
+        return rows & sig.moving_above(creep)
 
     if val is not None:
-        v = Signals(val, s.pre, q_range=s.q_range, rest_speed=s.rest_speed)
-        e_rows, v_rows = np.ones(s.n_rows, bool), np.ones(v.n_rows, bool)
+        v = Signals(on_the_same_turn(est, val), s.pre, q_range=s.q_range, rest_speed=s.rest_speed)
+        e_rows, v_rows = ~s.in_gap, ~v.in_gap
         return Split(s, e_rows, v, v_rows, val.source, est_creep=creeping(s, e_rows), val_creep=creeping(v, v_rows), preprocessing=pre_info)
     val_mask, blocks = _held_out_blocks(s.n_rows, cfg)
-    return Split(s, ~val_mask, s, val_mask, f"{est.source} ({blocks})", est_creep=creeping(s, ~val_mask), val_creep=creeping(s, val_mask),
+    e_rows, v_rows = ~val_mask & ~s.in_gap, val_mask & ~s.in_gap
+    return Split(s, e_rows, s, v_rows, f"{est.source} ({blocks})", est_creep=creeping(s, e_rows), val_creep=creeping(s, v_rows),
                  preprocessing=pre_info)
 
 
@@ -593,9 +594,11 @@ def _check_names(cfg: LoopConfig) -> list[str]:
 def stage_prepare(est: AxisData, val: AxisData | None, cfg: LoopConfig) -> tuple[Split, int]:
     """Stage 1: preprocessing, held-out rows, standstill; the held-out test's chunk length."""
     split = make_split(est, val, cfg)
-    for name, rows in (("estimation", split.est_fit), ("held-out", split.val_test)):
+    for name, rows, sig in (("estimation", split.est_fit, split.est), ("held-out", split.val_test, split.val)):
         if rows.sum() < 50:
-            raise IdentificationError(f"{split.est.data.source}: only {int(rows.sum())} moving {name} rows; the axis barely moves")
+            why = (f"{100.0 * sig.in_gap.mean():.0f} % of the rows lie in or next to gaps in the log (steps longer than {GAP_STEPS:g} median steps)"
+                   if sig.in_gap.mean() > 0.5 else "the axis barely moves")
+            raise IdentificationError(f"{sig.data.source}: only {int(rows.sum())} moving {name} rows; {why}")
     return split, chunk_rows(split, int(split.val_test.sum()))
 
 
