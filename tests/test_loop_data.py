@@ -520,3 +520,16 @@ def test_the_loop_on_a_wrapped_rotary_log_finds_what_it_finds_on_the_unwrapped_o
     for name in ("M", "Fv", "Fc"):
         assert pw[name]["value"] == pytest.approx(pa[name]["value"], rel=1e-6)
     assert any(d["code"] == "data" and d["parameter"] == "position" and "unwrapped" in d["message"] for d in res_w.diagnostics)
+
+
+def test_a_force_of_the_opposite_sign_is_refused_not_fitted():
+    """A force logged as the reaction on the axis (or a drive gain of the other sign): the
+    baseline's inertia and Coulomb friction come out negative, which no effect explains, so the
+    loop says what is wrong instead of returning a negative mass with a diagnostic."""
+    from gmsfric.errors import IdentificationError
+    from gmsfric.loop.rigs import Rig, rig_pair
+
+    est, val = rig_pair(Rig(duration=8.0, seed=2))
+    flipped = [AxisData(d.t, d.position, -d.force, source=d.source) for d in (est, val)]
+    with pytest.raises(IdentificationError, match=r"opposite sign to the motion.*M = -6\d\.?\d* kg.*negate the force"):
+        run_loop(*flipped)

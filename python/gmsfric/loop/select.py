@@ -86,7 +86,7 @@ from .effects import CATALOGUE, DELAY_STEPS, Effect, alternative_forms, detectio
 from .heldout import ClearRows, HeldOut, Split, chunk_rows, clear_rows, heldout, heldout_clear, paired_chunk_test
 from .idim import REFERENCE_MODEL, Array, BASE_TERMS, LinearModel, Preprocessing, Signals, Term, relative_error, term_rows
 from .residuals import Finding, analyse
-from .results import LoopResult, Step
+from .results import LoopResult, Step, parameter_unit
 
 #: Fractions of one sample tried for the timing alignment.
 ALIGNMENT_GRID = np.round(np.linspace(0.0, 1.0, 11), 3)
@@ -645,6 +645,12 @@ def stage_baseline(split: Split, chunk: int, cfg: LoopConfig) -> _State:
     base = _fit(LinearModel([BASE_TERMS[b] for b in cfg.baseline]), split)
     base_err = split.errors(base)
     p = base.params()
+    if _opposite_sign(p):
+        raise IdentificationError(f"{S.data.source}: the force has the opposite sign to the motion: the baseline's inertia and Coulomb "
+                                  f"friction both come out negative (M = {p['M']['value']:.4g} {parameter_unit('M', S.data.rotary)}, "
+                                  f"Fc = {p['Fc']['value']:.4g} {parameter_unit('Fc', S.data.rotary)}); gmsfric "
+                                  "expects the force applied to the axis, with the sign of the motion it drives: negate the force column "
+                                  "(or the drive gain)")
     phys = baseline_physics(base, split)
     std = {k: p[k]["std"] for k in ("M", "Fc", "Fv") if k in p}
     alignment: dict[str, Any] = {}
@@ -657,6 +663,16 @@ def stage_baseline(split: Split, chunk: int, cfg: LoopConfig) -> _State:
     st.model = _align(base, split, cfg, alignment, 0, chunk)
     st.err = split.errors(st.model)
     return st
+
+
+def _opposite_sign(params: dict[str, dict[str, Any]]) -> bool:
+    """Whether the baseline's inertia and Coulomb friction are both negative beyond three
+    standard errors: the force then opposes what drives the axis (a reaction, or a drive gain of
+    the other sign), which no effect can explain."""
+    def negative(name: str) -> bool:
+        v = params.get(name)
+        return v is not None and v["value"] < 0 and (v["std"] is None or not v["value"] + 3.0 * v["std"] >= 0)
+    return negative("M") and negative("Fc")
 
 
 def _residual_rows(st: _State, cfg: LoopConfig) -> tuple[dict[str, Finding], Array]:
