@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy.io import savemat
@@ -533,3 +535,46 @@ def test_a_force_of_the_opposite_sign_is_refused_not_fitted():
     flipped = [AxisData(d.t, d.position, -d.force, source=d.source) for d in (est, val)]
     with pytest.raises(IdentificationError, match=r"opposite sign to the motion.*M = -6\d\.?\d* kg.*negate the force"):
         run_loop(*flipped)
+
+
+def test_a_run_keeps_a_bounded_cache_of_columns_and_makes_the_evicted_again(monkeypatch):
+    """The columns of every grid point of every effect, at the full rate, filled 5.6 GB on a log
+    of half a million samples: a run keeps at most ``CACHE_BYTES`` of them, the least recently
+    used go first, and one asked for again is made again, equal."""
+    from gmsfric.loop import Signals, idim
+
+    t, q, f = _run(4000)
+    s = Signals(AxisData(t, q, f + np.sign(np.cos(2 * np.pi * t))))
+    monkeypatch.setattr(idim, "CACHE_BYTES", 5 * 8 * 4000)  # five columns
+    made: list[int] = []
+
+    def column(k: int):
+        def make():
+            made.append(k)
+            return np.full(4000, float(k))
+        return s.cached(("test", k), make)
+
+    for k in range(8):
+        column(k)
+    assert s._cache_bytes <= idim.CACHE_BYTES and len(made) == 8
+    column(7)  # recent: kept
+    assert len(made) == 8
+    np.testing.assert_array_equal(column(0), np.zeros(4000))  # evicted: made again, equal
+    assert made[-1] == 0 and s._cache_bytes <= idim.CACHE_BYTES
+
+
+def test_the_loop_ends_the_same_with_a_cache_far_too_small_for_its_columns(monkeypatch):
+    from gmsfric.loop import idim
+    from gmsfric.loop.rigs import Rig, rig_pair
+
+    est, val = rig_pair(Rig(effect="stribeck", duration=8.0, seed=3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plenty = run_loop(est, val)
+        monkeypatch.setattr(idim, "CACHE_BYTES", 2**21)  # about 30 of its columns, against thousands made
+        starved = run_loop(est, val)
+    assert starved.final.effects == plenty.final.effects
+    np.testing.assert_allclose(starved.final.theta, plenty.final.theta, rtol=1e-12, atol=0)
+    assert [s.reason for s in starved.steps] == [s.reason for s in plenty.steps]
+    # the plentiful run held far more than the starved one could: the starved one evicted
+    assert plenty.split.est._cache_bytes > 10 * 2**21 >= 10 * starved.split.est._cache_bytes

@@ -15,6 +15,7 @@ that parameter with the linear ones solved exactly at each grid point.
 from __future__ import annotations
 
 import functools
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Callable, Collection, Sequence, TypeGuard
 
@@ -164,6 +165,12 @@ def decimation_gain(dec: int) -> float:
 DECIMATION_SETTLING_TOL = 0.01
 
 
+#: Bytes of regression columns one run keeps (per :class:`Signals`): the loop builds a column
+#: for every grid point of every effect, at the full sample rate, and a long log at a high rate
+#: (half a million samples) filled 5.6 GB with them; beyond this the least recently used are made
+#: again when needed.
+CACHE_BYTES = 768 * 2**20
+
 #: Periods of the velocity filter's cut-off over which samples next to a gap in the log are left
 #: out: the zero-phase filter spreads what the interpolation made up over them.
 GAP_SETTLING_PERIODS = 2.0
@@ -284,7 +291,8 @@ class Signals:
         #: Rows where the axis moves; at rest a stuck axis holds any force up to break-away
         #: (set-valued stiction), which no regression column describes.
         self.moving = self.moving_above(self.rest_speed)
-        self._cache: dict[tuple, Array] = {}
+        self._cache: OrderedDict[tuple, Array] = OrderedDict()
+        self._cache_bytes = 0
 
     def moving_above(self, speed: float) -> Array:
         """Rows faster than ``speed`` (filtered velocity) where the measured position moves and the
@@ -304,9 +312,18 @@ class Signals:
         return int(self.y.size)
 
     def cached(self, key: tuple, make: Callable[[], Array]) -> Array:
-        if key not in self._cache:
-            self._cache[key] = make()
-        return self._cache[key]
+        """The array ``make()`` returns, kept under ``key`` while the run's cache holds at most
+        :data:`CACHE_BYTES` (the least recently used arrays go first, and are made again when
+        asked for)."""
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        value = make()
+        self._cache[key] = value
+        self._cache_bytes += value.nbytes
+        while self._cache_bytes > CACHE_BYTES and len(self._cache) > 1:
+            self._cache_bytes -= self._cache.popitem(last=False)[1].nbytes
+        return value
 
 
 # ------------------------------------------------------------------------------------------
