@@ -461,6 +461,12 @@ def test_the_loop_leaves_a_gap_out_and_says_so():
     assert p["Fc"]["value"] == pytest.approx(rig.fc, rel=0.15)
     gaps = [d for d in res.diagnostics if d["code"] == "data" and d["parameter"] == "time"]
     assert len(gaps) == 1 and "2 gaps" in gaps[0]["message"] and "left out" in gaps[0]["message"]
+    # held-out blocks of the estimation run itself: neither the fitted nor the held-out rows hold a gap
+    with pytest.warns(Warning):
+        alone = run_loop(est)
+    assert "asymmetric_friction" in alone.final.effects
+    assert not (alone.split.est_rows & alone.split.est.in_gap).any() and not (alone.split.val_rows & alone.split.est.in_gap).any()
+    assert alone.split.est.in_gap.any()
 
 
 def _wrapped(a: np.ndarray) -> np.ndarray:
