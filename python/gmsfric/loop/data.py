@@ -79,7 +79,6 @@ class AxisData:
     rotary: bool = False
     timing: dict[str, Any] = field(default_factory=dict)
     observed: NDArray[np.bool_] | None = field(default=None, init=False, repr=False)
-    _turns_unwrapped: int = field(default=0, init=False, repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.rotary, (bool, np.bool_)):
@@ -117,8 +116,7 @@ class AxisData:
         for name in ("t", "position", "force", "command", "reference", "disturbance"):
             if (a := getattr(self, name)) is not None:
                 within_fit_range(f"{self.source}: {name}", a, error=DataError)
-        if self.rotary:
-            self._unwrap_turns()  # before samples are averaged across a wrap
+        turns = self._unwrap_turns() if self.rotary else 0  # before samples are averaged across a wrap
         if repeated:
             self._merge_repeated_stamps()
             d = np.diff(self.t)
@@ -127,8 +125,8 @@ class AxisData:
         within_fit_range(f"{self.source}: position", self.position, time_step=float(np.min(d)), error=DataError)
         if not self.timing:
             self.timing = timing_summary(self.t)
-            if self._turns_unwrapped:
-                self.timing["turns_unwrapped"] = self._turns_unwrapped
+            if turns:
+                self.timing["turns_unwrapped"] = turns
             if repeated:
                 self.timing.update(samples_in=n, repeated_stamps_merged=repeated)
             if self.timing["irregular"]:
@@ -138,12 +136,13 @@ class AxisData:
         if not np.any(self.force != 0):
             raise DataError(f"{self.source}: force is zero everywhere")
 
-    def _unwrap_turns(self) -> None:
+    def _unwrap_turns(self) -> int:
         """Undo an encoder's wrap-around (an angle kept within one turn): a change of more than
         half a turn between two samples is no motion of a servo axis (pi rad per sample is
         3000 rad/s at 1 kHz), and when each such change is a whole turn give or take
-        :data:`WRAP_TOLERANCE`, the turns are added back; any other jump is refused."""
-        self._turns_unwrapped = 0
+        :data:`WRAP_TOLERANCE`, the turns are added back; any other jump is refused.  Returns
+        how many jumps of the position were unwrapped."""
+        unwrapped = 0
         for name in ("position", "reference"):
             a = getattr(self, name)
             if a is None:
@@ -160,7 +159,8 @@ class AxisData:
                                 "one sample, and not a whole turn as an encoder that wraps around makes; a corrupt or mislabelled column?")
             setattr(self, name, np.unwrap(a, period=2.0 * np.pi))
             if name == "position":
-                self._turns_unwrapped = int(jumps.size)
+                unwrapped = int(jumps.size)
+        return unwrapped
 
     def _merge_repeated_stamps(self) -> None:
         """One sample per time stamp: the samples logged under one stamp averaged."""
