@@ -181,18 +181,12 @@ def gap_reach(fs: float, cutoff: float) -> int:
     return max(1, int(np.ceil(GAP_SETTLING_PERIODS * fs / cutoff)))
 
 
-def observed_samples(observed: Array | None, n: int, reach: int, edge: int, dec: int, n_rows: int) -> tuple[Array, Array]:
-    """``(samples, rows_in_gap)`` of a run of ``n`` samples: the samples at least ``reach``
-    samples from an unobserved one (every sample when ``observed`` is ``None``), and the
-    decimated rows that are not (widened by the decimation filter's settling)."""
+def near_a_gap(observed: Array | None, n: int, reach: int) -> Array:
+    """The samples of a run of ``n`` within ``reach`` samples of an unobserved one (none when
+    ``observed`` is ``None``)."""
     if observed is None or observed.all():
-        return np.ones(n, dtype=bool), np.zeros(n_rows, dtype=bool)
-    near = ndimage.maximum_filter1d((~observed).astype(np.uint8), 2 * reach + 1).astype(bool)
-    rows = near[edge : near.size - edge : dec][:n_rows]
-    settle = decimation_settling_rows(dec)
-    if settle:
-        rows = ndimage.maximum_filter1d(rows.astype(np.uint8), 2 * settle + 1).astype(bool)
-    return ~near, np.ascontiguousarray(rows)
+        return np.zeros(n, dtype=bool)
+    return ndimage.maximum_filter1d((~observed).astype(np.uint8), 2 * reach + 1).astype(bool)
 
 
 @functools.lru_cache(maxsize=None)
@@ -284,15 +278,25 @@ class Signals:
         h = max(1, int(round(self.fs / (2.0 * self.cutoff))))
         span = ndimage.maximum_filter1d(data.position, 2 * h + 1) - ndimage.minimum_filter1d(data.position, 2 * h + 1)
         stuck = ndimage.maximum_filter1d((span <= 1.5 * self.resolution).astype(np.uint8), 2 * h + 1).astype(bool)
-        self.stuck = np.ascontiguousarray(stuck[self.edge : n - self.edge : self.dec][: self.n_rows])
-        #: Samples (full rate) and rows measured: clear of the samples a resampling made up across
-        #: a gap in the log by the filters' reach (see :func:`gap_reach`).
-        self.observed, self.in_gap = observed_samples(data.observed, n, gap_reach(self.fs, self.cutoff), self.edge, self.dec, self.n_rows)
+        self.stuck = self._rows_of(stuck)
+        # Samples a resampling made up across a gap in the log, and those the filters spread
+        # them over (see :func:`gap_reach`); the rows widened by the decimation filter's settling.
+        near = near_a_gap(data.observed, n, gap_reach(self.fs, self.cutoff))
+        #: Full-rate samples clear of gaps in the log.
+        self.observed = ~near
+        #: Rows in or next to a gap in the log: left out like standstill.
+        self.in_gap = self._rows_of(near)
+        if self.in_gap.any() and (settle := decimation_settling_rows(self.dec)):
+            self.in_gap = ndimage.maximum_filter1d(self.in_gap.astype(np.uint8), 2 * settle + 1).astype(bool)
         #: Rows where the axis moves; at rest a stuck axis holds any force up to break-away
         #: (set-valued stiction), which no regression column describes.
         self.moving = self.moving_above(self.rest_speed)
         self._cache: OrderedDict[tuple, Array] = OrderedDict()
         self._cache_bytes = 0
+
+    def _rows_of(self, mask: Array) -> Array:
+        """A full-rate boolean mask at the decimated rows (edges dropped, every ``dec``-th sample)."""
+        return np.ascontiguousarray(mask[self.edge : mask.size - self.edge : self.dec][: self.n_rows])
 
     def moving_above(self, speed: float) -> Array:
         """Rows faster than ``speed`` (filtered velocity) where the measured position moves and the
