@@ -586,3 +586,12 @@ def test_the_loop_ends_the_same_with_a_cache_far_too_small_for_its_columns(monke
     assert [s.reason for s in starved.steps] == [s.reason for s in plenty.steps]
     # the plentiful run held far more than the starved one could: the starved one evicted
     assert plenty.split.est._cache_bytes > 10 * 2**21 >= 10 * starved.split.est._cache_bytes
+
+
+def test_a_log_that_is_mostly_gap_is_refused_before_its_grid_is_allocated():
+    """Two stretches of a 1 kHz log 1e12 s apart (a clock that jumped): a uniform grid through
+    the gap would hold 1e15 samples; refused naming the gap, not a MemoryError."""
+    t = np.arange(3000) * 1e-3
+    t[1500:] += 1e12
+    with pytest.raises(DataError, match=r"mostly gaps \(the longest after row 1499, 1e\+12 s\)"):
+        AxisData(t, 0.01 * np.sin(np.arange(3000) / 50), np.cos(np.arange(3000) / 50))

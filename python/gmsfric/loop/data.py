@@ -183,7 +183,13 @@ class AxisData:
         self.timing["position_step_as_logged"] = quantisation_step(self.position)
         if (lattice := encoder_step(self.position)) is not None:
             self.timing["encoder_step_as_logged"] = lattice
-        n = int(np.floor((self.t[-1] - self.t[0]) / step + 1e-9)) + 1
+        span = (self.t[-1] - self.t[0]) / step
+        if not span < MAX_GRID_PER_SAMPLE * self.t.size:  # checked before the grid is allocated
+            i = int(np.argmax(np.diff(self.t)))
+            raise DataError(f"{self.source}: the log spans {self.t[-1] - self.t[0]:.4g} s, {span:.3g} steps of its median "
+                            f"{step:.3g} s for {self.t.size} samples: mostly gaps (the longest after row {i}, "
+                            f"{self.t[i + 1] - self.t[i]:.4g} s); cut the log into the runs it holds")
+        n = int(np.floor(span + 1e-9)) + 1
         tu = self.t[0] + step * np.arange(n)
         gaps = np.flatnonzero(np.diff(self.t) > GAP_STEPS * step)
         if gaps.size:
@@ -275,6 +281,10 @@ JITTER_TOLERANCE = 0.01
 #: Share of a turn by which a jump of a rotary position may differ from whole turns and still be
 #: an encoder's wrap-around: the axis's own motion within the sample.
 WRAP_TOLERANCE = 0.05
+
+#: Samples of the uniform grid per logged sample beyond which a log is mostly gaps and refused
+#: (the grid would be made up rather than measured, and could not be allocated).
+MAX_GRID_PER_SAMPLE = 10.0
 
 #: A time step longer than this many median steps is a gap in the log (samples lost), not a late
 #: sample: loggers that jitter stay within about twice their step (a 100 Hz robot log: 2 to 12 ms).
