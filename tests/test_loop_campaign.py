@@ -429,8 +429,9 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     that settles the case (every row, or the velocity filter's margin alone) the test still holds
     because both models are fitted again on the rows it keeps; without that refit too (and
     without a freely timed switch of friction beside the delay), seed 29's delay is named, and
-    seed 23's passes the significance test clear of reversals (t 4.2) but removes less than the
-    minimum gain there (2.9 %), the last guard left."""
+    seed 23's passes on all rows but not clear of reversals, the last guard left (on the delay
+    grid, t 4.2 there but less than the minimum gain, 2.9 %; refined between the grid's points,
+    t 2.5)."""
     import dataclasses
 
     from gmsfric.loop import CATALOGUE, LoopConfig, run_loop
@@ -460,8 +461,9 @@ def test_a_delay_must_gain_where_the_filters_have_settled_after_reversals(monkey
     else:
         (step,) = [s for s in res.steps if s.effect == "input_delay"]
         ev = step.evidence
-        assert res.effects == [] and ev["t_heldout_away_from_reversals"] >= cfg.t_threshold and ev["validation_gain_away_from_reversals"] < cfg.min_gain
-        assert ev["validation_gain"] >= cfg.min_gain and ev["t_heldout"] >= cfg.t_threshold
+        # on all rows the shift passes; clear of reversals it gains too little or too weakly
+        assert res.effects == [] and ev["validation_gain"] >= cfg.min_gain and ev["t_heldout"] >= cfg.t_threshold
+        assert ev["t_heldout_away_from_reversals"] < cfg.t_threshold or ev["validation_gain_away_from_reversals"] < cfg.min_gain, ev
 
 
 def test_an_asymmetry_of_viscous_friction_leaves_the_coulomb_level_alone(monkeypatch):
@@ -1013,12 +1015,20 @@ def test_a_delay_that_explains_far_more_than_a_free_switch_needs_it_only_at_the_
     the family-wise level and below alpha).  A switch that explained the gain would leave the
     delay little of it: keeping half or more, the comparison needs only the nominal level and the
     delay is named, within one sample of the planted delay plus the sampling hold.  Held to the
-    family-wise level there, it is refused."""
+    family-wise level there, it is refused.  So it was on the delay grid (1.6 samples with the
+    sampling hold); refined between the grid's points, the delay passes beyond the free switch at
+    the family-wise level on its own (t = 6.3), and is named without the relaxed level."""
     from gmsfric.loop import LoopConfig, run_loop, select
 
     case_id = "single-101-input_delay"
     runs = _campaign_runs(103, case_id)
     cfg = LoopConfig(progress=False, effects=("input_delay",))
+    refined = run_loop(*runs, cfg)
+    assert refined.effects == ["input_delay"]
+    ev = next(s for s in refined.steps if s.effect == "input_delay" and s.accepted).evidence
+    assert ev["t_heldout_beyond_a_free_switch"] >= cfg.t_threshold
+    # the mechanism, on the grid's delay as the case was found
+    monkeypatch.setattr(select, "_refine_delay", lambda best, split, cfg: best)
     res = run_loop(*runs, cfg)
     assert res.effects == ["input_delay"]
     ev = next(s for s in res.steps if s.effect == "input_delay" and s.accepted).evidence

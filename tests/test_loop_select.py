@@ -11,7 +11,7 @@ from scipy import signal
 from gmsfric import InvalidInputError
 from gmsfric.loop import LoopConfig, run_loop
 from gmsfric.loop.data import AxisData
-from gmsfric.loop.rigs import Rig, simulate_rig
+from gmsfric.loop.rigs import Rig, rig_pair, simulate_rig
 from gmsfric.loop.heldout import paired_chunk_test
 from gmsfric.loop.select import _cv_sse, baseline_physics, make_split
 
@@ -234,6 +234,22 @@ def test_a_real_delay_on_a_sine_run_is_not_taken_for_a_tone(monkeypatch):
     step = next(s for s in res.steps if s.effect == "input_delay" and s.accepted)
     assert abs(step.evidence["line_hz"] - 0.8) <= 0.05 and step.evidence["motion_share_in_the_line"] >= 0.5
     assert step.evidence["gain_share_in_one_line"] < select.TONE_GAIN_SHARE
+
+
+@pytest.mark.parametrize("refined", [True, False])
+def test_a_delay_between_the_grids_points_is_refined_to_the_planted_one(monkeypatch, refined):
+    """The loop's rig at 2 kHz with a 3 ms delay: with the core's sampling hold the force acts 6.5
+    samples after it is logged, halfway between two points of the delay grid (6 and 7).  The
+    refined delay lies within 0.15 samples of it; the grid alone is half a sample off."""
+    from gmsfric.loop import select
+
+    if not refined:
+        monkeypatch.setattr(select, "_refine_delay", lambda best, split, cfg: best)
+    rig = Rig(effect="input_delay", fs=2000.0, seed=4)
+    res = run_loop(*rig_pair(rig), LoopConfig(progress=False, effects=("input_delay",)))
+    assert res.effects == ["input_delay"]
+    steps = res.final.delay * rig.fs
+    assert (abs(steps - 6.5) <= 0.15) is refined, steps
 
 
 def _chattering_delay_run(seed: int, fs: float = 1000.0, tau: float = 0.003) -> AxisData:

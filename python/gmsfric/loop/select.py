@@ -757,6 +757,8 @@ def _best_variant_on(eff: Effect, model: LinearModel, split: Split, cfg: LoopCon
             prog.update(note=f"{eff.name}")
     if contested is not None and best_invalid is not None and contested[0] <= CONTESTED_MARGIN * best_invalid[0] and (best is None or contested[0] < best[0]):
         best = contested
+    if best is not None and eff.name == "input_delay":
+        best = _refine_delay(best, split, cfg)
     if best is not None and eff.refine is not None:
         # refined before it meets the probes: a resonance between the grid's frequencies and
         # damping ratios fits far worse than at its own (an outside audit's rig: 0.46 of the
@@ -825,6 +827,36 @@ def _refine_hyper(eff: Effect, best: tuple[float, LinearModel], split: Split, cf
     return (float(res.fun), m), None
 
 
+#: Precision (samples) to which a delay is refined between its grid neighbours.
+DELAY_REFINE_TOL = 0.02
+
+
+def _refine_delay(best: tuple[float, LinearModel], split: Split, cfg: LoopConfig) -> tuple[float, LinearModel]:
+    """The best grid delay refined between its neighbours on :data:`DELAY_STEPS` (bounded scalar
+    search on the same cross-validated error), never below the grid's first delay.  The grid is a
+    sample or more apart beyond four samples, and a delay off by half a sample leaves a residual
+    like the force's derivative, which a resonance at the top of its range then takes up (an
+    outside audit's 1 kHz rig: 3.5 ms chosen for 3.33 ms, then a 40 Hz "compliance")."""
+    cv0, m0 = best
+    dt = split.est.dt
+    steps0 = m0.delay / dt
+    k = int(np.argmin(np.abs(DELAY_STEPS - steps0)))
+    lo, hi = float(DELAY_STEPS[max(k - 1, 0)]), float(DELAY_STEPS[min(k + 1, DELAY_STEPS.size - 1)])
+    if not hi > lo:
+        return best
+
+    def objective(steps: float) -> float:
+        try:
+            return _cv(_with_delay(m0, steps * dt, dt), split, cfg)
+        except (IdentificationError, np.linalg.LinAlgError, ValueError):
+            return np.inf
+
+    res = optimize.minimize_scalar(objective, bounds=(lo, hi), method="bounded", options={"xatol": DELAY_REFINE_TOL, "maxiter": 20})
+    if not (np.isfinite(res.fun) and res.fun < cv0):
+        return best
+    return float(res.fun), _with_delay(m0, float(res.x) * dt, dt)
+
+
 def _joint_refit(st: _State, cfg: LoopConfig, rnd: int) -> None:
     """Choose every accepted effect's grid parameters again given the others (in the order they
     entered), then the timing alignment, then the grid parameters again in passes until a pass no
@@ -872,6 +904,8 @@ def _rechoose(model: LinearModel, names: Sequence[str], st: _State, cfg: LoopCon
                 continue
             if cv < cur_cv:
                 cur_cv, model = cv, cand
+        if name == "input_delay":
+            cur_cv, model = _refine_delay((cur_cv, model), split, cfg)
         if eff.refine is not None:
             (cur_cv, model), _ = _refine_hyper(eff, (cur_cv, model), split, cfg)
     return model
